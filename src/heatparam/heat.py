@@ -1,0 +1,170 @@
+"""Heat kernels (paper Eq. 2-4, 7) and heat-method geodesic distances (Eq. 8-10), many sources per solve.
+
+Precompute once: factor (Δt·L + B) for Eq. 4 and the Poisson matrix L for Eq. 10; then every batch of sources
+is two multi-column back-substitutions plus sparse × dense products (Eq. 8 gradient/normalization, Eq. 10
+divergence). No Python loop runs per vertex.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+from heatparam.memory import require
+from heatparam.operators import Operators
+from heatparam.solvers import Factor
+
+TIME_STEPS = ("default", "paper")
+
+#: Bytes of scratch per source column per vertex in :meth:`HeatGeodesics.distances` (heat solution, gradient
+#: and unit field on ~2n faces × 2 components, right-hand side, distance): ~12 float64 per vertex.
+_BYTES_PER_COLUMN_VERTEX = 12 * 8
+
+
+def time_step(op: Operators, mode: str | float = "default", coef: float = 1.0) -> float:
+    """Heat diffusion time t for Eq. 4.
+
+    ``default``: t = coef·h², h the mean edge length (Crane et al. 2013). It has units of length², so the
+    distances scale with the mesh and the map is scale-invariant.
+    ``paper``: Eq. 7 exactly, Δt = T = the longest edge length (a single implicit step). It has units of
+    length, not length², so it is **not** scale-invariant: scaling the mesh by s changes the relative diffusion
+    by 1/s and so changes the map's shape, not only its size.
+    A float is taken as t itself.
+    """
+    if isinstance(mode, (int, float)) and not isinstance(mode, bool):
+        if not mode > 0:
+            raise ValueError(f"time step must be positive, got {mode}")
+        return float(mode)
+    if mode == "default":
+        return coef * op.mean_edge**2
+    if mode == "paper":
+        return op.max_edge
+    raise ValueError(f"time step must be one of {TIME_STEPS} or a positive number, got {mode!r}")
+
+
+class HeatGeodesics:
+    """Heat-method geodesic distances on one mesh (precompute in the constructor, then solve many).
+
+    Parameters
+    ----------
+    op : the mesh's :class:`Operators` (L, B, G, div).
+    t : diffusion time Δt = T (see :func:`time_step`).
+    backend : sparse factorization backend (see :mod:`heatparam.solvers`).
+    block_bytes : scratch memory budget per batch of sources; sets how many columns are solved at once.
+    """
+
+    def __init__(self, op: Operators, t: float, backend: str = "auto", block_bytes: float = 256 * 2**20):
+        self.op = op
+        self.t = float(t)
+        self.n = op.L.shape[0]
+        self.heat = Factor((self.t * op.L + op.B).tocsc(), backend)  # Eq. 4
+        # Eq. 10: L is singular (constants); its right-hand side sums to zero, so pinning vertex 0 and
+        # solving the reduced SPD system gives the exact solution up to the constant fixed afterwards.
+        self.poisson = Factor(op.L[1:, 1:].tocsc(), self.heat.backend)
+        self.backend = self.heat.backend
+        self.block = int(max(1, min(256, block_bytes // (_BYTES_PER_COLUMN_VERTEX * self.n))))
+        self._lumped = np.asarray(op.B.sum(axis=1)).ravel()  # ∫ of each hat function
+        self._AA = np.concatenate([op.areas, op.areas])[:, None]
+
+    def kernels(self, sources: Sequence[int]) -> np.ndarray:
+        """Heat kernels u_i(·, T) (Eq. 4 with one step Δt = T) for the given sources, (n,k).
+
+        The initial condition is the discrete Dirac δ_i of Eq. 3 (∫δ_i = 1): δ_i = e_i / ∫φ_i.
+        """
+        src = np.asarray(sources, dtype=np.int64)
+        delta = sp.csc_matrix(
+            (1.0 / self._lumped[src], (src, np.arange(len(src)))), shape=(self.n, len(src))
+        )
+        return self.heat.solve((self.op.B @ delta).toarray())
+
+    def _distances_block(self, src: np.ndarray) -> np.ndarray:
+        u = self.kernels(src)
+        m = len(self.op.areas)
+        grad = (self.op.G @ u).reshape(2, m, len(src))  # per-face ∇u in local frames
+        norm = np.sqrt(grad[0] ** 2 + grad[1] ** 2)
+        norm[norm == 0] = 1.0  # flat regions: no direction, zero field
+        X = (-grad / norm).reshape(2 * m, len(src))  # Eq. 8: unit field pointing away from the source
+        rhs = self.op.G.T @ (self._AA * X)  # −div X (Eq. 9-10 right-hand side, B·K in the paper)
+        phi = np.zeros((self.n, len(src)))
+        phi[1:] = self.poisson.solve(rhs[1:])
+        phi -= phi[src, np.arange(len(src))]  # the source is at distance 0
+        np.maximum(phi, 0.0, out=phi)  # tiny negative values near the source are discretization noise
+        return phi
+
+    def distances(
+        self,
+        sources: Sequence[int],
+        out: np.ndarray | None = None,
+        progress: Callable[[int], None] | None = None,
+    ) -> np.ndarray:
+        """Geodesic distances from each source to every vertex, (n,k); column j belongs to ``sources[j]``.
+
+        ``out`` may be a preallocated (n,k) array (any float dtype). ``progress(c)`` is called after each
+        batch with the number of columns done.
+        """
+        src = np.asarray(sources, dtype=np.int64)
+        if out is None:
+            require(8.0 * self.n * len(src), f"distance matrix {self.n} x {len(src)}",
+                    "use fewer sources (landmarks)")
+            out = np.empty((self.n, len(src)))
+        for s in range(0, len(src), self.block):
+            out[:, s : s + self.block] = self._distances_block(src[s : s + self.block])
+            if progress is not None:
+                progress(min(self.block, len(src) - s))
+        return out
+
+
+def all_pairs_bytes(n: int) -> float:
+    """Peak bytes of the all-pairs path (the n×n distance matrix plus MDS work vectors)."""
+    return 8.0 * n * n * 1.05
+
+
+def all_pairs(solver: HeatGeodesics, progress: Callable[[int], None] | None = None) -> np.ndarray:
+    """The symmetrized all-pairs geodesic matrix G (n,n), Eq. 10 for every vertex, G = (G + Gᵀ)/2."""
+    n = solver.n
+    require(all_pairs_bytes(n), f"all-pairs distance matrix {n} x {n}", "use --geodesics landmarks")
+    D = solver.distances(np.arange(n), progress=progress)
+    D += D.T  # in place and symmetric: numpy buffers the transposed operand when they overlap
+    D *= 0.5
+    return D
+
+
+def farthest_point_landmarks(
+    solver: HeatGeodesics,
+    V: np.ndarray,
+    k: int,
+    seed: int = 0,
+    progress: Callable[[int], None] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """k landmarks by geodesic farthest-point sampling, and their distance columns (n,k).
+
+    The samples are drawn in doubling batches (1, 1, 2, 4, ...) so that each batch is one multi-column solve:
+    within a batch, each next point is the farthest from the landmarks so far by geodesic distance and from
+    the batch's earlier picks by straight-line distance (a lower bound of the geodesic one). The distance
+    columns are the ones landmark MDS needs, so sampling costs no extra solves.
+    """
+    n = solver.n
+    k = int(min(k, n))
+    rng = np.random.default_rng(seed)
+    D = np.empty((n, k))
+    chosen = np.empty(k, dtype=np.int64)
+    # Start from the vertex farthest from a random one (lands on the border, independent of the seed's luck).
+    start = int(rng.integers(n))
+    d0 = solver.distances([start])[:, 0]
+    chosen[0] = int(np.argmax(d0))
+    D[:, :1] = solver.distances(chosen[:1], progress=progress)
+    mind = D[:, 0].copy()
+    done = 1
+    while done < k:
+        b = min(done, k - done)
+        cur = mind.copy()
+        for j in range(b):
+            i = int(np.argmax(cur))
+            chosen[done + j] = i
+            np.minimum(cur, np.linalg.norm(V - V[i], axis=1), out=cur)
+        solver.distances(chosen[done : done + b], out=D[:, done : done + b], progress=progress)
+        np.minimum(mind, D[:, done : done + b].min(axis=1), out=mind)
+        done += b
+    return chosen, D

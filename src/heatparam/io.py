@@ -1,0 +1,187 @@
+"""File formats (the only module that knows them): load meshes, write UV OBJs and JSON reports atomically.
+
+Meshes load through meshio (OBJ, OFF, PLY, STL, with vertex order kept exactly: no merging, no reordering)
+and trimesh for glTF/GLB scenes. Quads and polygons are fan-triangulated.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from heatparam.errors import HeatparamError
+
+MESH_SUFFIXES = (".obj", ".off", ".ply", ".stl", ".glb", ".gltf")
+
+
+def _triangulate(cells: list[tuple[str, np.ndarray]]) -> np.ndarray:
+    """Fan-triangulate polygon cells [(type, (c,k) indices)] into (m,3) int64 triangles, in order."""
+    tris = []
+    for _, idx in cells:
+        idx = np.asarray(idx, dtype=np.int64)
+        if idx.ndim != 2 or idx.shape[1] < 3:
+            continue  # points and lines carry no surface
+        for j in range(1, idx.shape[1] - 1):
+            tris.append(np.stack([idx[:, 0], idx[:, j], idx[:, j + 1]], axis=1))
+    if not tris:
+        return np.zeros((0, 3), dtype=np.int64)
+    return np.concatenate(tris).astype(np.int64)
+
+
+def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """Read a triangle mesh: V (n,3) float64 in file order, F (m,3) int64.
+
+    Raises HeatparamError (one line) for a missing, unreadable, unsupported or empty file.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise HeatparamError(f"cannot read {p}: no such file")
+    suffix = p.suffix.lower()
+    if suffix not in MESH_SUFFIXES:
+        raise HeatparamError(f"cannot read {p}: unsupported format {suffix!r} (use one of {', '.join(MESH_SUFFIXES)})")
+    try:
+        if suffix in (".glb", ".gltf"):
+            V, F = _load_trimesh(p)
+        else:
+            V, F = _load_meshio(p)
+    except HeatparamError:
+        raise
+    except Exception as exc:  # any parser failure is a bad file, reported in one line
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise HeatparamError(f"cannot read {p}: {msg} — is it a valid {suffix[1:].upper()} file?") from None
+    if len(V) == 0 or len(F) == 0:
+        raise HeatparamError(f"cannot read {p}: the file holds no triangles")
+    return V, F
+
+
+def _load_meshio(p: Path) -> tuple[np.ndarray, np.ndarray]:
+    import meshio
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m = meshio.read(p)
+    V = np.asarray(m.points, dtype=np.float64)
+    if V.ndim != 2 or V.shape[1] not in (2, 3):
+        raise HeatparamError(f"cannot read {p}: vertices must have 2 or 3 coordinates")
+    if V.shape[1] == 2:
+        V = np.column_stack([V, np.zeros(len(V))])
+    F = _triangulate([(c.type, c.data) for c in m.cells])
+    return V, F
+
+
+def _load_trimesh(p: Path) -> tuple[np.ndarray, np.ndarray]:
+    import trimesh
+
+    scene = trimesh.load(p, process=False, force="scene")
+    geoms = list(scene.dump()) if hasattr(scene, "dump") else [scene]
+    if not geoms:
+        raise HeatparamError(f"cannot read {p}: the file holds no meshes")
+    Vs, Fs, off = [], [], 0
+    for g in geoms:
+        Vs.append(np.asarray(g.vertices, dtype=np.float64))
+        Fs.append(np.asarray(g.faces, dtype=np.int64) + off)
+        off += len(g.vertices)
+    return np.concatenate(Vs), np.concatenate(Fs)
+
+
+@contextlib.contextmanager
+def atomic_write(path: str | os.PathLike, mode: str = "w"):
+    """Open a temporary file beside ``path``; on success rename it over ``path``, on failure delete it.
+
+    A failed run therefore never leaves a half-written or clobbered output.
+    """
+    p = Path(path)
+    if not p.parent.exists():
+        raise HeatparamError(f"cannot write {p}: folder {p.parent} does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+    try:
+        with os.fdopen(fd, mode) as fh:
+            yield fh
+        os.replace(tmp, p)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def save_uv_obj(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.ndarray, header: str = "") -> None:
+    """Write an OBJ: ``v`` = V in input order, one ``vt`` per vertex (same index), faces ``f v/vt``."""
+    with atomic_write(path) as fh:
+        if header:
+            fh.write("".join(f"# {line}\n" for line in header.splitlines()))
+        np.savetxt(fh, V, fmt="v %.17g %.17g %.17g")
+        np.savetxt(fh, uv, fmt="vt %.17g %.17g")
+        f1 = F + 1
+        np.savetxt(fh, np.repeat(f1, 2, axis=1), fmt="f %d/%d %d/%d %d/%d")
+
+
+def load_uv_obj(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Read an OBJ with texture coordinates: V (n,3), F (m,3), UV (t,2), FUV (m,3) (per-corner UV indices).
+
+    Polygons are fan-triangulated; faces without ``vt`` raise a one-line HeatparamError.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise HeatparamError(f"cannot read {p}: no such file")
+    V, UV, F, FT = [], [], [], []
+    try:
+        with open(p, encoding="utf-8", errors="replace") as fh:
+            for line in fh:
+                s = line.split()
+                if not s:
+                    continue
+                if s[0] == "v":
+                    V.append([float(x) for x in s[1:4]])
+                elif s[0] == "vt":
+                    UV.append([float(x) for x in s[1:3]])
+                elif s[0] == "f":
+                    corners = [c.split("/") for c in s[1:]]
+                    if any(len(c) < 2 or not c[1] for c in corners):
+                        raise HeatparamError(f"{p}: a face has no texture coordinates (need 'f v/vt ...')")
+                    vi = [_obj_index(c[0], len(V)) for c in corners]
+                    ti = [_obj_index(c[1], len(UV)) for c in corners]
+                    for j in range(1, len(vi) - 1):
+                        F.append([vi[0], vi[j], vi[j + 1]])
+                        FT.append([ti[0], ti[j], ti[j + 1]])
+    except HeatparamError:
+        raise
+    except (ValueError, IndexError) as exc:
+        raise HeatparamError(f"cannot read {p}: malformed OBJ line ({exc})") from None
+    if not UV:
+        raise HeatparamError(f"{p} has no texture coordinates (vt lines) to evaluate")
+    if not F:
+        raise HeatparamError(f"cannot read {p}: the file holds no faces")
+    return (np.asarray(V, dtype=np.float64), np.asarray(F, dtype=np.int64),
+            np.asarray(UV, dtype=np.float64), np.asarray(FT, dtype=np.int64))
+
+
+def _obj_index(tok: str, count: int) -> int:
+    i = int(tok)
+    return i - 1 if i > 0 else count + i
+
+
+def save_json(path: str | os.PathLike, data: dict) -> None:
+    """Write ``data`` as indented JSON, atomically."""
+    with atomic_write(path) as fh:
+        json.dump(data, fh, indent=2, default=_json_default)
+        fh.write("\n")
+
+
+def _json_default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serializable: {type(o).__name__}")
+
+
+def save_npy(path: str | os.PathLike, array: np.ndarray) -> None:
+    """Write a .npy array atomically."""
+    with atomic_write(path, "wb") as fh:
+        np.save(fh, array)

@@ -1,0 +1,680 @@
+"""Quality metrics of a mesh parameterization (the library's yardstick).
+
+Plain, vectorized functions over numpy arrays:
+
+- ``V`` (n, 3) float64 vertex positions, ``F`` (m, 3) int64 triangles;
+- ``uv`` (n_uv, 2) float64 texture coordinates, optionally with per-corner indices ``Fuv`` (m, 3) into
+  ``uv`` (OBJ files with seams). ``Fuv=None`` means ``Fuv = F`` (then ``n_uv == n``).
+
+Conventions
+-----------
+* Per face, the Jacobian ``J`` is that of the affine map from the 3D triangle, written in an orthonormal
+  frame of its own plane (``x`` along ``v1 - v0``, ``y = n x x`` with ``n`` the face normal, so the 3D
+  triangle is counter-clockwise in it), to the UV triangle. A counter-clockwise UV triangle has
+  ``det J > 0`` and a positive signed UV area.
+* :func:`distortion` removes the global scale first: singular values are multiplied by
+  ``uv_scale = sqrt(sum area_3d / sum |area_uv|)`` so total areas match (a true-scale map has
+  ``uv_scale ~ 1``). Per face: ``iso = max(s1, 1/s2)``, ``conformal = s1/s2``,
+  ``area = max(s1*s2, 1/(s1*s2))``; all equal 1 for an isometry.
+* Flipped faces (signed UV area <= 0 after fixing a global mirror) have *infinite* distortion:
+  ``*_max`` is ``inf`` whenever a face is flipped; ``*_mean`` is the area-weighted mean over the
+  non-flipped faces only (reported together with ``flips`` and ``flipped_area_fraction``); ``*_p95`` is
+  the area-weighted 95th percentile over all faces with flipped faces counted as ``inf``, so it is
+  ``inf`` exactly when flipped faces cover more than 5% of the surface.
+* Degenerate 3D faces (zero area, relative tolerance 1e-14 of the squared longest edge) carry no
+  distortion: they are left out of every statistic and of the scale, and counted in
+  ``degenerate_faces``. No statistic is NaN.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from heatparam.errors import MeshError
+
+__all__ = [
+    "PerFaceDistortion",
+    "boundary_crossings",
+    "boundary_edges",
+    "boundary_loops",
+    "distortion",
+    "face_jacobian_singular_values",
+    "per_face_distortion",
+    "stress",
+    "summary",
+    "weld_uv",
+]
+
+_DEGENERATE_REL = 1e-14  # |2 * area| <= this * (longest edge)^2  ->  degenerate 3D face
+_P = 0.95  # percentile reported as *_p95
+_CELL_MAX = 32  # a grid cell with more edges than this is refined (boundary_crossings)
+_MAX_DEPTH = 4  # refinement levels of the crossing grid
+_REFINE = 4.0  # cell size divisor per refinement level
+_MAX_ENTRIES = 20_000_000  # (edge, cell) entries allowed per refinement level
+
+
+# ----------------------------------------------------------------------------------------------------------
+# input checks
+# ----------------------------------------------------------------------------------------------------------
+def _points(X: Any, dim: int, name: str) -> np.ndarray:
+    X = np.asarray(X, dtype=np.float64)
+    if X.ndim != 2 or X.shape[1] != dim:
+        raise MeshError(f"{name} must have shape (n, {dim}), got {X.shape}")
+    return X
+
+
+def _check_finite(X: np.ndarray, F: np.ndarray, name: str) -> None:
+    """Raise unless every row of X referenced by F is finite (unreferenced rows may hold anything)."""
+    used = np.zeros(len(X), dtype=bool)
+    used[F.ravel()] = True
+    if not np.isfinite(X[used]).all():
+        raise MeshError(f"{name} contains NaN or infinite coordinates")
+
+
+def _faces(F: Any, n: int, name: str) -> np.ndarray:
+    F = np.asarray(F)
+    if F.ndim != 2 or F.shape[1] != 3:
+        raise MeshError(f"{name} must have shape (m, 3), got {F.shape}")
+    if F.size and not np.issubdtype(F.dtype, np.integer):
+        raise MeshError(f"{name} must hold integer indices, got dtype {F.dtype}")
+    F = F.astype(np.int64, copy=False)
+    if F.size and (F.min() < 0 or F.max() >= n):
+        raise MeshError(f"{name} indexes outside 0..{n - 1}")
+    return F
+
+
+def _uv_faces(F: np.ndarray, uv: Any, Fuv: Any | None) -> tuple[np.ndarray, np.ndarray]:
+    uv = _points(uv, 2, "uv")
+    if Fuv is None:
+        if F.size and F.max() >= len(uv):
+            raise MeshError(
+                f"uv has {len(uv)} rows but F indexes vertex {F.max()}; pass Fuv for per-corner UVs"
+            )
+        Fuv = F
+    else:
+        Fuv = _faces(Fuv, len(uv), "Fuv")
+        if Fuv.shape != F.shape:
+            raise MeshError(f"Fuv must have the shape of F {F.shape}, got {Fuv.shape}")
+    _check_finite(uv, Fuv, "uv")
+    return uv, Fuv
+
+
+# ----------------------------------------------------------------------------------------------------------
+# per-face Jacobians and distortion
+# ----------------------------------------------------------------------------------------------------------
+def face_jacobian_singular_values(
+    V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Singular values of the per-face Jacobian of the 3D -> UV map.
+
+    Parameters
+    ----------
+    V : (n, 3) float64
+    F : (m, 3) int64
+    uv : (n_uv, 2) float64
+    Fuv : (m, 3) int64 or None
+        Per-corner indices into ``uv``; None means ``F``.
+
+    Returns
+    -------
+    sigma1, sigma2 : (m,) float64
+        ``sigma1 >= sigma2 >= 0`` (closed form for 2x2). Degenerate 3D faces (zero area) get
+        ``sigma1 = inf, sigma2 = 0``.
+    signed_area_uv : (m,) float64
+        Signed UV area, positive for a counter-clockwise UV triangle (same orientation as the 3D
+        triangle in its local frame).
+    area_3d : (m,) float64
+        3D triangle areas.
+    """
+    V = _points(V, 3, "V")
+    F = _faces(F, len(V), "F")
+    _check_finite(V, F, "V")
+    uv, Fuv = _uv_faces(F, uv, Fuv)
+
+    p0 = V[F[:, 0]]
+    e1 = V[F[:, 1]] - p0
+    e2 = V[F[:, 2]] - p0
+    e3 = e2 - e1
+    x1, y1, z1 = e1.T
+    x2, y2, z2 = e2.T
+    nn = np.sqrt((y1 * z2 - z1 * y2) ** 2 + (z1 * x2 - x1 * z2) ** 2 + (x1 * y2 - y1 * x2) ** 2)  # 2 * area
+    L2 = x1 * x1 + y1 * y1 + z1 * z1
+    dot = x1 * x2 + y1 * y2 + z1 * z2
+    longest2 = np.maximum(np.maximum(L2, x2 * x2 + y2 * y2 + z2 * z2), np.einsum("ij,ij->i", e3, e3))
+    degen = nn <= _DEGENERATE_REL * longest2  # also catches longest2 == 0
+
+    q0 = uv[Fuv[:, 0]]
+    d1 = uv[Fuv[:, 1]] - q0
+    d2 = uv[Fuv[:, 2]] - q0
+    signed_uv = 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+
+    # local 3D frame: p1 = (L, 0), p2 = (dot/L, nn/L);  J = [d1 d2] @ inv([p1 p2])
+    L = np.sqrt(np.where(degen, 1.0, L2))
+    Lnn = L * np.where(degen, 1.0, nn)
+    a = d1[:, 0] / L
+    c = d1[:, 1] / L
+    b = (d2[:, 0] * L2 - d1[:, 0] * dot) / Lnn
+    d = (d2[:, 1] * L2 - d1[:, 1] * dot) / Lnn
+
+    # closed-form 2x2 SVD: J = conformal part (norm Q) + anti-conformal part (norm R); s1 = Q+R, s2 = |Q-R|
+    Q = np.hypot(0.5 * (a + d), 0.5 * (c - b))
+    R = np.hypot(0.5 * (a - d), 0.5 * (c + b))
+    sigma1 = Q + R
+    sigma2 = np.abs(Q - R)
+    sigma1[degen] = np.inf
+    sigma2[degen] = 0.0
+    return sigma1, sigma2, signed_uv, 0.5 * nn
+
+
+class PerFaceDistortion(NamedTuple):
+    """Per-face distortion after global scale normalization (all (m,); inf on flipped/degenerate faces)."""
+
+    iso: np.ndarray
+    conformal: np.ndarray
+    area: np.ndarray
+    flipped: np.ndarray
+
+
+class _Analysis(NamedTuple):
+    per_face: PerFaceDistortion
+    weight: np.ndarray  # (m,) 3D areas
+    valid: np.ndarray  # (m,) non-degenerate
+    scale: float
+    mirrored: bool
+    area_3d: float
+    area_uv: float
+
+
+def _analyze(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray | None) -> _Analysis:
+    s1, s2, sa, a3 = face_jacobian_singular_values(V, F, uv, Fuv)
+    valid = np.isfinite(s1)
+    if not valid.any():
+        raise MeshError("every 3D face is degenerate (zero area): no distortion can be measured")
+    area_3d = float(a3[valid].sum())
+    area_uv = float(np.abs(sa[valid]).sum())
+    if not area_uv > 0.0:
+        raise MeshError("the UV layout has zero total area")
+    scale = float(np.sqrt(area_3d / area_uv))
+    neg = float(a3[valid & (sa < 0)].sum())
+    pos = float(a3[valid & (sa > 0)].sum())
+    mirrored = neg > pos
+    flipped = valid & ((-sa if mirrored else sa) <= 0)
+    good = valid & ~flipped
+
+    m = len(s1)
+    iso, conf, area = (np.full(m, np.inf) for _ in range(3))
+    t1 = s1[good] * scale
+    t2 = s2[good] * scale
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        iso[good] = np.maximum(t1, 1.0 / t2)
+        conf[good] = t1 / t2
+        det = t1 * t2
+        area[good] = np.maximum(det, 1.0 / det)
+    per_face = PerFaceDistortion(iso, conf, area, flipped)
+    return _Analysis(per_face, a3, valid, scale, mirrored, area_3d, area_uv)
+
+
+def per_face_distortion(
+    V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray | None = None
+) -> PerFaceDistortion:
+    """Per-face distortion measures, for plotting.
+
+    The UV is first scaled globally so total areas match (see :func:`distortion`).
+
+    Parameters
+    ----------
+    V : (n, 3) float64
+    F : (m, 3) int64
+    uv : (n_uv, 2) float64
+    Fuv : (m, 3) int64 or None
+
+    Returns
+    -------
+    PerFaceDistortion
+        Named tuple ``(iso, conformal, area, flipped)``: three (m,) float64 arrays
+        (``max(s1, 1/s2)``, ``s1/s2``, ``max(s1 s2, 1/(s1 s2))``) and an (m,) bool array. Flipped faces
+        (after fixing a global mirror) and degenerate 3D faces have ``inf`` in all three measures;
+        degenerate faces have ``flipped == False``. Mask with ``np.isfinite`` before plotting.
+    """
+    return _analyze(V, F, uv, Fuv).per_face
+
+
+def _weighted_quantile(x: np.ndarray, w: np.ndarray, q: float) -> float:
+    """Smallest value whose cumulative weight fraction reaches ``q`` (inf values sort last)."""
+    order = np.argsort(x, kind="stable")
+    cw = np.cumsum(w[order])
+    i = int(np.searchsorted(cw, q * cw[-1], side="left"))
+    return float(x[order[min(i, len(x) - 1)]])
+
+
+def distortion(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray | None = None) -> dict[str, Any]:
+    """Scale-normalized distortion statistics of a parameterization.
+
+    Parameters
+    ----------
+    V : (n, 3) float64
+    F : (m, 3) int64
+    uv : (n_uv, 2) float64
+    Fuv : (m, 3) int64 or None
+
+    Returns
+    -------
+    dict
+        Python scalars only:
+
+        - ``iso_mean, iso_p95, iso_max`` (and ``conformal_*``, ``area_*``): the mean is area-weighted over
+          the non-flipped faces; p95 is the area-weighted 95th percentile over all non-degenerate faces
+          with flipped faces as ``inf``; max is ``inf`` if any face is flipped. A mean over no face is inf.
+        - ``flips``: non-degenerate faces with signed UV area <= 0 after orientation is fixed;
+          ``flipped_area_fraction``: their share of the 3D area.
+        - ``mirrored``: True when faces with negative UV area hold the majority of the 3D area; the whole
+          map is then treated as mirrored (orientation reversed before counting flips).
+        - ``uv_scale``: factor ``sqrt(total_area_3d / total_area_uv)`` applied to the UV before measuring.
+        - ``total_area_3d, total_area_uv`` (sum of ``|signed UV area|``), ``faces``, ``degenerate_faces``.
+    """
+    an = _analyze(V, F, uv, Fuv)
+    pf, w, valid = an.per_face, an.weight, an.valid
+    good = valid & ~pf.flipped
+    wg = w[good]
+    wsum = float(wg.sum())
+    out: dict[str, Any] = {}
+    for name, x in (("iso", pf.iso), ("conformal", pf.conformal), ("area", pf.area)):
+        out[f"{name}_mean"] = float(np.dot(wg, x[good]) / wsum) if wsum > 0 else float("inf")
+        out[f"{name}_p95"] = _weighted_quantile(x[valid], w[valid], _P)
+        out[f"{name}_max"] = float(x[valid].max())
+    flips = int(pf.flipped.sum())
+    out.update(
+        flips=flips,
+        flipped_area_fraction=float(w[pf.flipped].sum() / an.area_3d) if an.area_3d > 0 else 0.0,
+        mirrored=bool(an.mirrored),
+        uv_scale=an.scale,
+        total_area_3d=an.area_3d,
+        total_area_uv=an.area_uv,
+        faces=len(w),
+        degenerate_faces=int((~valid).sum()),
+    )
+    return out
+
+
+# ----------------------------------------------------------------------------------------------------------
+# boundaries
+# ----------------------------------------------------------------------------------------------------------
+def _half_edges(F: np.ndarray) -> np.ndarray:
+    return np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+
+
+def _boundary_half_edges(F: np.ndarray) -> np.ndarray:
+    """(b, 2) directed half-edges (as oriented in their face) of edges used by exactly one face."""
+    F = np.asarray(F, dtype=np.int64)
+    if F.size == 0:
+        return np.zeros((0, 2), np.int64)
+    he = _half_edges(F)
+    lo = he.min(axis=1)
+    hi = he.max(axis=1)
+    key = lo * (int(F.max()) + 1) + hi
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    differs = ks[1:] != ks[:-1]
+    single = np.ones(len(ks), dtype=bool)
+    single[1:] &= differs
+    single[:-1] &= differs
+    return he[np.sort(order[single])]
+
+
+def boundary_edges(F: np.ndarray) -> np.ndarray:
+    """Edges used by exactly one face.
+
+    Parameters
+    ----------
+    F : (m, 3) int64
+
+    Returns
+    -------
+    (b, 2) int64
+        Vertex pairs, oriented as in their face.
+    """
+    return _boundary_half_edges(F)
+
+
+def _walk_loops(he: np.ndarray) -> list[np.ndarray]:
+    """Chain directed boundary half-edges into loops (open chains if the boundary is not a 1-manifold)."""
+    nb = len(he)
+    if nb == 0:
+        return []
+    src, dst = he[:, 0], he[:, 1]
+    order = np.argsort(src, kind="stable")
+    verts, first = np.unique(src[order], return_index=True)
+    last = np.append(first[1:], nb)
+    start_of = dict(zip(verts.tolist(), zip(first.tolist(), last.tolist(), strict=True), strict=True))
+    order_l = order.tolist()
+    src_l, dst_l = src.tolist(), dst.tolist()
+    used = [False] * nb
+    ptr = {v: s for v, (s, _) in start_of.items()}  # next unused slot per source vertex
+    loops = []
+    for e0 in order_l:
+        if used[e0]:
+            continue
+        used[e0] = True
+        v0 = src_l[e0]
+        loop = [v0]
+        cur = dst_l[e0]
+        while cur != v0:
+            slot = start_of.get(cur)
+            if slot is None:
+                break
+            k, end = ptr[cur], slot[1]
+            while k < end and used[order_l[k]]:
+                k += 1
+            ptr[cur] = k
+            if k == end:
+                break
+            e = order_l[k]
+            used[e] = True
+            loop.append(cur)
+            cur = dst_l[e]
+        else:
+            loops.append(np.asarray(loop, dtype=np.int64))
+            continue
+        loop.append(cur)  # open chain: keep its last vertex
+        loops.append(np.asarray(loop, dtype=np.int64))
+    return loops
+
+
+def boundary_loops(F: np.ndarray) -> list[np.ndarray]:
+    """Ordered boundary loops of a triangle mesh.
+
+    Chains the boundary edges (edges in exactly one face) in face orientation. Where the boundary is not
+    a 1-manifold (a vertex with several boundary edges, as at a bow-tie) every edge still lands in exactly
+    one loop; inconsistently oriented faces can yield open chains. ``igl.boundary_loop_all`` is not used:
+    it mishandles bow-ties and builds full face adjacency (tens of seconds on a high-valence fan).
+    For the UV boundary of a map with seams pass ``Fuv`` (after :func:`weld_uv` if corners are
+    duplicated).
+
+    Parameters
+    ----------
+    F : (m, 3) int64
+
+    Returns
+    -------
+    list of (k_i,) int64
+        Vertex indices of each loop, in order (the last vertex connects back to the first).
+    """
+    return _walk_loops(_boundary_half_edges(F))
+
+
+def weld_uv(F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Merge per-corner UVs that belong to the same 3D vertex and have identical coordinates.
+
+    OBJ exporters often duplicate texture coordinates per corner; after welding, only true seams (UV
+    discontinuities) remain as UV boundary.
+
+    Parameters
+    ----------
+    F : (m, 3) int64
+    uv : (n_uv, 2) float64
+    Fuv : (m, 3) int64
+
+    Returns
+    -------
+    uv_w : (n_w, 2) float64
+    Fuv_w : (m, 3) int64
+    """
+    F = np.asarray(F, dtype=np.int64)
+    uv = np.asarray(uv, dtype=np.float64)
+    Fuv = np.asarray(Fuv, dtype=np.int64)
+    vid = F.ravel()
+    xy = uv[Fuv.ravel()]
+    if len(vid) == 0:
+        return np.zeros((0, 2)), Fuv.copy()
+    order = np.lexsort((xy[:, 1], xy[:, 0], vid))
+    v_s, xy_s = vid[order], xy[order]
+    new = np.ones(len(order), dtype=bool)
+    new[1:] = (v_s[1:] != v_s[:-1]) | (xy_s[1:, 0] != xy_s[:-1, 0]) | (xy_s[1:, 1] != xy_s[:-1, 1])
+    gid = np.cumsum(new) - 1
+    ids = np.empty(len(order), dtype=np.int64)
+    ids[order] = gid
+    return xy_s[new].copy(), ids.reshape(F.shape)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# boundary self-intersections
+# ----------------------------------------------------------------------------------------------------------
+def _unique_int(x: np.ndarray) -> np.ndarray:
+    """Sorted unique values (sort-based; faster than the hash path of ``np.unique`` on large int arrays)."""
+    x = np.sort(x)
+    keep = np.ones(len(x), dtype=bool)
+    keep[1:] = x[1:] != x[:-1]
+    return x[keep]
+
+
+def _orient(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+
+
+def _edge_cells(A: np.ndarray, B: np.ndarray, h: float, origin: np.ndarray) -> np.ndarray:
+    """(k, 3) rows (edge, cx, cy): every grid cell each segment A[i]-B[i] passes through (deduplicated).
+
+    Cells come from the two endpoints plus the two cells on either side of every grid-line crossing.
+    """
+    a = (A - origin) / h
+    b = (B - origin) / h
+    ca = np.floor(a).astype(np.int64)
+    cb = np.floor(b).astype(np.int64)
+    ne = len(A)
+    eid = np.arange(ne, dtype=np.int64)
+    parts = [np.column_stack([eid, ca]), np.column_stack([eid, cb])]
+    for ax in (0, 1):
+        other = 1 - ax
+        lo = np.minimum(ca[:, ax], cb[:, ax])
+        nx = np.abs(cb[:, ax] - ca[:, ax])
+        tot = int(nx.sum())
+        if tot == 0:
+            continue
+        e = np.repeat(eid, nx)
+        k = lo[e] + 1 + (np.arange(tot) - np.repeat(np.cumsum(nx) - nx, nx))  # grid line index
+        t = (k - a[e, ax]) / (b[e, ax] - a[e, ax])
+        co = np.floor(a[e, other] + t * (b[e, other] - a[e, other])).astype(np.int64)
+        c_lo = np.minimum(ca[e, other], cb[e, other])
+        c_hi = np.maximum(ca[e, other], cb[e, other])
+        co = np.clip(co, c_lo, c_hi)
+        for kk in (k - 1, k):
+            cell = np.empty((tot, 3), np.int64)
+            cell[:, 0] = e
+            cell[:, 1 + ax] = kk
+            cell[:, 1 + other] = co
+            parts.append(cell)
+    rows = np.concatenate(parts)
+    order = np.lexsort((rows[:, 0], rows[:, 2], rows[:, 1]))
+    rows = rows[order]
+    keep = np.ones(len(rows), dtype=bool)
+    keep[1:] = (rows[1:] != rows[:-1]).any(axis=1)
+    return rows[keep]
+
+
+def _pairs_in_groups(edges: np.ndarray, starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """All (i, j) pairs of ``edges`` within each group ``edges[starts[g] : starts[g] + counts[g]]``."""
+    if len(counts) == 0:
+        return np.zeros((0, 2), np.int64)
+    # members of group g sit at starts[g] .. starts[g] + counts[g] - 1; member p pairs with p+1 .. end-1
+    local = np.arange(int(counts.sum()), dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts)
+    gpos = np.repeat(starts, counts) + local
+    end = np.repeat(starts + counts, counts)
+    npart = end - gpos - 1
+    tot = int(npart.sum())
+    if tot == 0:
+        return np.zeros((0, 2), np.int64)
+    first = np.repeat(gpos, npart)
+    second = first + 1 + (np.arange(tot) - np.repeat(np.cumsum(npart) - npart, npart))
+    return np.column_stack([edges[first], edges[second]])
+
+
+def _candidate_pairs(A: np.ndarray, B: np.ndarray, ids: np.ndarray, h: float, depth: int, out: list) -> None:
+    """Append to ``out`` (k, 2) arrays of global edge ids whose segments share a grid cell of size ``h``."""
+    Al, Bl = A[ids], B[ids]
+    origin = np.minimum(Al.min(axis=0), Bl.min(axis=0))
+    rows = _edge_cells(Al, Bl, h, origin)
+    new = np.ones(len(rows), dtype=bool)
+    new[1:] = (rows[1:, 1] != rows[:-1, 1]) | (rows[1:, 2] != rows[:-1, 2])
+    starts = np.flatnonzero(new)
+    counts = np.diff(np.append(starts, len(rows)))
+    edges = ids[rows[:, 0]]
+    dense = counts > _CELL_MAX
+    if dense.any() and depth < _MAX_DEPTH:
+        sub = _unique_int(rows[np.repeat(dense, counts), 0])
+        h_sub = h / _REFINE
+        span = np.abs(Bl[sub] - Al[sub]).sum() / h_sub + 2 * len(sub)
+        if span <= _MAX_ENTRIES:
+            out.append(_pairs_in_groups(edges, starts[~dense], counts[~dense]))
+            _candidate_pairs(A, B, ids[sub], h_sub, depth + 1, out)
+            return
+    out.append(_pairs_in_groups(edges, starts, counts))
+
+
+def _segment_crossings(P: np.ndarray, E: np.ndarray) -> int:
+    """Pairs of segments ``P[E[i]]`` that properly cross or overlap collinearly (shared indices skipped)."""
+    P = np.asarray(P, dtype=np.float64)
+    E = np.asarray(E, dtype=np.int64)
+    ne = len(E)
+    if ne < 2:
+        return 0
+    A, B = P[E[:, 0]], P[E[:, 1]]
+    length = np.linalg.norm(B - A, axis=1)
+    extent = float(np.max(np.maximum(A, B).max(axis=0) - np.minimum(A, B).min(axis=0)))
+    if extent == 0.0:
+        return 0
+    # cell ~ median edge length, but large enough that sum(len)/h stays O(#edges) and cells per axis bounded
+    h = max(float(np.median(length)), float(length.mean()) / 4.0, extent / 4.0e6)
+    chunks: list[np.ndarray] = []
+    _candidate_pairs(A, B, np.arange(ne, dtype=np.int64), h, 0, chunks)
+    cand = np.concatenate(chunks) if chunks else np.zeros((0, 2), np.int64)
+    if len(cand) == 0:
+        return 0
+    i = np.minimum(cand[:, 0], cand[:, 1])
+    j = np.maximum(cand[:, 0], cand[:, 1])
+    key = _unique_int(i[i != j] * ne + j[i != j])
+    i, j = key // ne, key % ne
+    ei, ej = E[i], E[j]
+    share = (ei[:, :1] == ej).any(axis=1) | (ei[:, 1:] == ej).any(axis=1)
+    i, j = i[~share], j[~share]
+    p, q, r, s = A[i], B[i], A[j], B[j]
+    o1, o2 = np.sign(_orient(p, q, r)), np.sign(_orient(p, q, s))
+    o3, o4 = np.sign(_orient(r, s, p)), np.sign(_orient(r, s, q))
+    proper = (o1 * o2 < 0) & (o3 * o4 < 0)
+    col = (o1 == 0) & (o2 == 0) & (o3 == 0) & (o4 == 0)
+    if col.any():
+        p, q, r, s = p[col], q[col], r[col], s[col]
+        d = np.abs(q - p) + np.abs(s - r)
+        ax = (d[:, 1] > d[:, 0]).astype(np.int64)  # project on the dominant axis of the pair
+        rng = np.arange(len(ax))
+        pa, qa, ra, sa = p[rng, ax], q[rng, ax], r[rng, ax], s[rng, ax]
+        lo = np.maximum(np.minimum(pa, qa), np.minimum(ra, sa))
+        hi = np.minimum(np.maximum(pa, qa), np.maximum(ra, sa))
+        overlap = int((lo < hi).sum())
+    else:
+        overlap = 0
+    return int(proper.sum()) + overlap
+
+
+def boundary_crossings(uv: np.ndarray, F: np.ndarray) -> int:
+    """Global overlap check: number of intersecting pairs of UV boundary edges.
+
+    All boundary edges (edges in exactly one face of ``F``: outer loop, holes, seams) are tested pairwise
+    through a uniform grid (cell ~ median edge length, refined where crowded) with vectorized orientation
+    predicates. Counted: pairs that cross properly (each segment's endpoints strictly on opposite sides of
+    the other) and collinear pairs whose overlap has positive length. Pairs sharing a vertex index are
+    skipped, and mere touching (an endpoint exactly on the other segment) is not counted. A layout whose
+    boundaries do not cross can still overlap only if one chart lies entirely inside another, which this
+    does not detect.
+
+    Parameters
+    ----------
+    uv : (n_uv, 2) float64
+    F : (m, 3) int64
+        Triangles indexing ``uv`` (pass ``Fuv`` for per-corner UVs, welded with :func:`weld_uv` if the
+        corners are duplicated).
+
+    Returns
+    -------
+    int
+    """
+    uv = _points(uv, 2, "uv")
+    F = _faces(F, len(uv), "F")
+    _check_finite(uv, F, "uv")
+    return _segment_crossings(uv, _boundary_half_edges(F))
+
+
+# ----------------------------------------------------------------------------------------------------------
+# stress and summary
+# ----------------------------------------------------------------------------------------------------------
+def stress(uv: np.ndarray, D: np.ndarray, sources: np.ndarray) -> float:
+    """Relative RMS stress of UV distances against geodesic distances (no UV rescaling).
+
+    ``sqrt(sum_ij (|uv_i - uv_{s_j}| - D_ij)^2 / sum_ij D_ij^2)`` over all vertices ``i`` and sources
+    ``j``; non-finite ``D`` entries (unreachable vertices) are skipped.
+
+    Parameters
+    ----------
+    uv : (n, 2) float64
+    D : (n, k) float64
+        Geodesic distances from each of the k sources to every vertex.
+    sources : (k,) int64
+        Vertex index of each source.
+
+    Returns
+    -------
+    float
+    """
+    uv = _points(uv, 2, "uv")
+    if not np.isfinite(uv).all():
+        raise MeshError("uv contains NaN or infinite coordinates")
+    D = np.asarray(D, dtype=np.float64)
+    sources = np.asarray(sources, dtype=np.int64).ravel()
+    n, k = len(uv), len(sources)
+    if D.shape != (n, k):
+        raise ValueError(f"D must have shape (n, k) = ({n}, {k}), got {D.shape}")
+    if k and (sources.min() < 0 or sources.max() >= n):
+        raise ValueError("sources index outside the vertex range")
+    num = den = 0.0
+    block = max(1, 4_000_000 // max(n, 1))
+    for j0 in range(0, k, block):
+        S = uv[sources[j0 : j0 + block]]
+        dist = np.hypot(uv[:, 0, None] - S[None, :, 0], uv[:, 1, None] - S[None, :, 1])
+        Db = D[:, j0 : j0 + block]
+        ok = np.isfinite(Db)
+        num += float(np.square(dist - Db, where=ok, out=np.zeros_like(Db)).sum())
+        den += float(np.square(Db, where=ok, out=np.zeros_like(Db)).sum())
+    if not den > 0.0:
+        raise ValueError("stress is undefined: all geodesic distances are zero or non-finite")
+    return float(np.sqrt(num / den))
+
+
+def summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray | None = None) -> dict[str, Any]:
+    """Distortion statistics plus global injectivity checks, as JSON-serializable Python scalars.
+
+    Parameters
+    ----------
+    V : (n, 3) float64
+    F : (m, 3) int64
+    uv : (n_uv, 2) float64
+    Fuv : (m, 3) int64 or None
+
+    Returns
+    -------
+    dict
+        Everything :func:`distortion` returns (``flips`` included), plus ``boundary_crossings`` (on the UV
+        boundary; with ``Fuv`` the corners are welded first by :func:`weld_uv`) and ``bijective``
+        (``flips == 0 and boundary_crossings == 0``; a globally mirrored map can be bijective).
+        Infinite values (``*_max`` with flips) are Python ``inf``: ``json.dumps`` writes them as ``Infinity``.
+    """
+    out = distortion(V, F, uv, Fuv)
+    F = np.asarray(F, dtype=np.int64)
+    if Fuv is None:
+        uv_b, F_b = uv, F
+    else:
+        uv_b, F_b = weld_uv(F, uv, Fuv)
+    crossings = boundary_crossings(uv_b, F_b)
+    out["boundary_crossings"] = int(crossings)
+    out["bijective"] = bool(out["flips"] == 0 and crossings == 0)
+    return out

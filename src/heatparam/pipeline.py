@@ -1,0 +1,215 @@
+"""The orchestrator: one mesh through the paper's stages (Figure 1), with a report.
+
+``parameterize(V, F, **options)`` → (uv, report). The CLI calls it; it never touches files.
+Stages: validate (``mesh``) → [Poisson fill M*, §2.5 (``fill``)] → operators (Eq. 5-6) → heat geodesics
+(Eq. 4, 7-10) → MDS (Eq. 11-14; landmark MDS for large meshes) → [trim to M] → [refine] → metrics.
+"""
+
+from __future__ import annotations
+
+import platform
+from dataclasses import asdict, dataclass, fields
+from typing import NamedTuple
+
+import numpy as np
+
+from heatparam import __version__, heat, mds, metrics
+from heatparam.errors import HeatparamError
+from heatparam.memory import peak_rss_bytes
+from heatparam.mesh import MeshInfo, validate_mesh
+from heatparam.operators import MASS_KINDS, build_operators
+from heatparam.progress import Progress
+from heatparam.solvers import BACKENDS
+
+FILL_MODES = ("auto", "poisson", "none")
+GEODESIC_MODES = ("auto", "all-pairs", "landmarks")
+
+
+@dataclass
+class Options:
+    """Every knob of the pipeline, with its default written once (the CLI reuses these).
+
+    fill : ``auto`` decides from the mesh whether a Poisson fill M* is needed (§2.5); ``poisson``; ``none``.
+    geodesics : ``all-pairs`` (the paper: n×n distances, classical MDS), ``landmarks`` (k farthest-point
+        sources, landmark MDS, O(n·k) memory), or ``auto`` (all-pairs up to ``all_pairs_max`` vertices).
+    landmarks : k for the landmark path (0 = automatic: ``default_landmarks(n)``).
+    time_step : ``default`` (t = t_coef·h², scale-invariant), ``paper`` (Eq. 7, not scale-invariant) or t.
+    t_coef : the c in t = c·h² (Crane et al.'s t = h²; see docs/method.md for the measured trade-off).
+    mass : ``lumped`` (default) or ``consistent`` (Eq. 6) mass matrix B.
+    solver : sparse factorization backend (``auto``, ``cholespy``, ``scipy``, ``pardiso``).
+    seed : seeds every random choice (first landmark, Lanczos start vector): same seed, same output.
+    all_pairs_max : largest vertex count for which ``auto`` takes the all-pairs path.
+    stress_sources : number of sources for the sampled Eq. 1 stress in the report.
+    progress : show stage messages and progress bars on stderr.
+    """
+
+    fill: str = "auto"
+    geodesics: str = "auto"
+    landmarks: int = 0
+    time_step: str | float = "default"
+    t_coef: float = 1.0
+    mass: str = "lumped"
+    solver: str = "auto"
+    seed: int = 0
+    all_pairs_max: int = 3000
+    stress_sources: int = 32
+    progress: bool = False
+
+    def validate(self) -> None:
+        """Raise HeatparamError for an option outside its range."""
+        _choice("fill", self.fill, FILL_MODES)
+        _choice("geodesics", self.geodesics, GEODESIC_MODES)
+        _choice("mass", self.mass, MASS_KINDS)
+        _choice("solver", self.solver, BACKENDS)
+        if isinstance(self.time_step, str):
+            _choice("time_step", self.time_step, heat.TIME_STEPS)
+        elif not self.time_step > 0:
+            raise HeatparamError(f"time_step must be positive, got {self.time_step}")
+        if self.landmarks < 0 or self.landmarks == 1 or self.landmarks == 2:
+            raise HeatparamError(f"landmarks must be 0 (automatic) or at least 3, got {self.landmarks}")
+        if not self.t_coef > 0:
+            raise HeatparamError(f"t_coef must be positive, got {self.t_coef}")
+
+
+def _choice(name: str, value, allowed) -> None:
+    if value not in allowed:
+        raise HeatparamError(f"{name} must be one of {', '.join(allowed)}; got {value!r}")
+
+
+def default_landmarks(n: int) -> int:
+    """Landmark count for the landmark path (see BENCHMARKS.md for the error/time trade-off)."""
+    return int(min(n, 200))
+
+
+class Result(NamedTuple):
+    """What :func:`parameterize` returns: ``uv`` (n,2) for the input vertices, and the JSON-able report."""
+
+    uv: np.ndarray
+    report: dict
+
+
+def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, **kwargs) -> Result:
+    """Flatten a disk-like triangle mesh near-isometrically (true scale).
+
+    Parameters
+    ----------
+    V : (n,3) float64 vertices. F : (m,3) int64 triangles (consistently oriented).
+    options : an :class:`Options`; keyword arguments override its fields (``parameterize(V, F, seed=3)``).
+
+    Returns
+    -------
+    Result(uv (n,2) float64, report dict): uv[i] is the image of V[i]; the report holds the parameters,
+    per-stage timings, mesh facts and the map's metrics (see README).
+    """
+    opts = Options(**{**(asdict(options) if options else {}), **kwargs})
+    opts.validate()
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    prog = Progress(opts.progress)
+    warnings: list[str] = []
+
+    with prog.stage("validate"):
+        info = validate_mesh(V, F)
+    warnings += info.warnings
+    # Work on the referenced vertices only (unreferenced ones get the centroid at the end).
+    keep = np.flatnonzero(info.referenced)
+    remap = np.full(len(V), -1, dtype=np.int64)
+    remap[keep] = np.arange(len(keep))
+    Vc, Fc = V[keep], remap[F]
+
+    fill_used, fill_reason = _decide_fill(opts.fill, info)
+    if fill_used:
+        raise HeatparamError("--fill poisson is not available yet (the Poisson fill is being built)")
+
+    layout = _geodesic_layout(Vc, Fc, opts, prog)
+    uvc = mds.orient_layout(layout.uv, Fc)
+
+    uv = np.zeros((len(V), 2))
+    uv[keep] = uvc
+    uv[~info.referenced] = uvc.mean(axis=0)
+
+    with prog.stage("metrics"):
+        summary = metrics.summary(Vc, Fc, uvc)
+        summary["stress_rel_rms"] = metrics.stress(
+            np.vstack([uvc, layout.uv_landmarks if layout.uv_landmarks is not None else uvc[:0]]),
+            layout.D_points, layout.stress_columns,
+        )
+    if summary["flips"] or summary["boundary_crossings"]:
+        warnings.append(
+            f"the map is not bijective: {summary['flips']} flipped triangles, "
+            f"{summary['boundary_crossings']} boundary crossings"
+        )
+    for w in warnings:
+        prog.warn(w)
+
+    report = {
+        "heatparam_version": __version__,
+        "parameters": {**{f.name: getattr(opts, f.name) for f in fields(opts)},
+                       "time_step_value": layout.t, "landmarks_used": layout.k},
+        "method": {"geodesics": layout.mode, "solver_backend": layout.backend,
+                   "fill": "poisson" if fill_used else "none", "fill_reason": fill_reason,
+                   "mass_matrix": opts.mass, "mollified_edge_length": layout.mollify_eps},
+        "mesh": info.as_dict(),
+        "metrics": summary,
+        "timings_s": prog.timings,
+        "peak_rss_mb": round(peak_rss_bytes() / 2**20, 1),
+        "machine": {"python": platform.python_version(), "platform": platform.platform()},
+        "warnings": warnings,
+    }
+    return Result(uv, report)
+
+
+def _decide_fill(mode: str, info: MeshInfo) -> tuple[bool, str]:
+    """Whether to compute on a Poisson fill M* (§2.5), and why."""
+    if mode == "none":
+        return False, "disabled (--fill none)"
+    if mode == "poisson":
+        return True, "requested (--fill poisson)"
+    return False, "auto: the Poisson fill is not available yet"
+
+
+class Layout(NamedTuple):
+    uv: np.ndarray  # (n,2) MDS layout of the points
+    uv_landmarks: np.ndarray | None  # (k,2) landmark positions when they are not among the points
+    D_points: np.ndarray  # (n_points, c) geodesic distances used for the stress sample
+    stress_columns: np.ndarray  # (c,) row index (in [uv; uv_landmarks]) of each column's source
+    mode: str
+    k: int
+    t: float
+    backend: str
+    mollify_eps: float
+
+
+def _geodesic_layout(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress) -> Layout:
+    """Heat geodesics on (V, F) and MDS of its vertices (Eq. 4-14)."""
+    n = len(V)
+    mode = opts.geodesics
+    if mode == "auto":
+        mode = "all-pairs" if n <= opts.all_pairs_max else "landmarks"
+    if mode == "all-pairs":
+        from heatparam.memory import require
+
+        require(heat.all_pairs_bytes(n), f"all-pairs geodesics on {n} vertices ({n} x {n} matrix)",
+                "use --geodesics landmarks (or auto)")
+    with prog.stage("operators"):
+        op = build_operators(V, F, mass=opts.mass)
+    t = heat.time_step(op, opts.time_step, opts.t_coef)
+    with prog.stage("factorize"):
+        solver = heat.HeatGeodesics(op, t, backend=opts.solver)
+    rng = np.random.default_rng(opts.seed)
+    if mode == "all-pairs":
+        with prog.stage("geodesics"), prog.bar(n, "geodesics") as bar:
+            D = heat.all_pairs(solver, progress=bar.update)
+        cols = np.sort(rng.choice(n, size=min(n, opts.stress_sources), replace=False))
+        D_stress = D[:, cols].copy()
+        with prog.stage("mds"):
+            uv = mds.classical_mds(D, seed=opts.seed, overwrite=True)
+        del D
+        return Layout(uv, None, D_stress, cols, mode, n, t, solver.backend, op.mollify_eps)
+    k = opts.landmarks or default_landmarks(n)
+    with prog.stage("geodesics"), prog.bar(k + 1, "landmark geodesics") as bar:
+        lm, DL = heat.farthest_point_landmarks(solver, V, k, seed=opts.seed, progress=bar.update)
+    with prog.stage("mds"):
+        uv, _ = mds.landmark_mds(DL, lm)
+    cols = np.arange(min(k, opts.stress_sources))
+    return Layout(uv, None, DL[:, cols], lm[cols], mode, k, t, solver.backend, op.mollify_eps)

@@ -1,0 +1,92 @@
+"""Preview pictures (paper Figures 10-12): the UV layout coloured by isometric distortion, flips marked,
+beside the 3D mesh textured with a checkerboard through the map. matplotlib, off-screen (Agg)."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+#: Faces drawn at most per panel; larger meshes are drawn from an even subsample of faces in the 3D panel.
+MAX_FACES_3D = 200_000
+
+
+def _figure(ncols: int):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, ncols, figsize=(6.4 * ncols, 6.4), dpi=110)
+    return plt, fig, np.atleast_1d(axes)
+
+
+def draw_layout(ax, F: np.ndarray, uv: np.ndarray, iso: np.ndarray, flipped: np.ndarray, vmax: float = 2.0,
+                title: str = "") -> None:
+    """UV triangles coloured by isometric distortion (1 = isometric), flipped triangles in red."""
+    from matplotlib.collections import PolyCollection
+
+    cmap = _cmap()
+    vals = np.clip(np.nan_to_num(iso, nan=vmax, posinf=vmax), 1.0, vmax)
+    colors = cmap((vals - 1.0) / (vmax - 1.0))
+    colors[flipped] = (0.9, 0.0, 0.0, 1.0)
+    ax.add_collection(PolyCollection(uv[F], facecolors=colors, edgecolors="none", antialiaseds=False))
+    if flipped.any():
+        c = uv[F[flipped]].mean(axis=1)
+        ax.scatter(c[:, 0], c[:, 1], s=12, marker="x", color="red", linewidths=0.8, label=f"{flipped.sum()} flipped")
+        ax.legend(loc="upper right", fontsize=8)
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.set_title(title or "UV layout: isometric distortion", fontsize=10)
+    import matplotlib.cm as cm
+    import matplotlib.colors as mc
+
+    sm = cm.ScalarMappable(norm=mc.Normalize(1.0, vmax), cmap=cmap)
+    ax.figure.colorbar(sm, ax=ax, fraction=0.04, pad=0.02, label="max(σ1, 1/σ2)")
+
+
+def _cmap():
+    import matplotlib
+
+    return matplotlib.colormaps["viridis"]
+
+
+def draw_checker_3d(ax, V: np.ndarray, F: np.ndarray, uv: np.ndarray, cells: int = 16, title: str = "") -> None:
+    """The 3D mesh in an orthographic view along its thinnest principal axis, checkerboard through the map."""
+    from matplotlib.collections import PolyCollection
+
+    if len(F) > MAX_FACES_3D:
+        F = F[np.linspace(0, len(F) - 1, MAX_FACES_3D).astype(np.int64)]
+    c = V.mean(axis=0)
+    _, _, Wt = np.linalg.svd(V - c, full_matrices=False)
+    P = (V - c) @ Wt.T  # principal frame: x, y in-plane, z = view direction
+    span = float(np.ptp(uv, axis=0).max()) or 1.0
+    uvc = uv[F].mean(axis=1) / (span / cells)
+    checker = (np.floor(uvc[:, 0]) + np.floor(uvc[:, 1])) % 2
+    n = np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]])
+    n /= np.linalg.norm(n, axis=1, keepdims=True) + 1e-300
+    shade = 0.35 + 0.65 * np.abs(n[:, 2])
+    base = np.where(checker[:, None] > 0, [[0.95, 0.55, 0.1]], [[0.15, 0.2, 0.55]])
+    colors = np.clip(base * shade[:, None], 0, 1)
+    order = np.argsort(P[F, 2].mean(axis=1))  # painter's algorithm: far faces first
+    ax.add_collection(PolyCollection(P[F[order]][:, :, :2], facecolors=colors[order], edgecolors="none",
+                                     antialiaseds=False))
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.set_axis_off()
+    ax.set_title(title or "3D mesh, checkerboard through the map", fontsize=10)
+
+
+def save_preview(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.ndarray, title: str = "") -> None:
+    """Write the two-panel preview PNG atomically."""
+    from heatparam import metrics
+    from heatparam.io import atomic_write
+
+    pf = metrics.per_face_distortion(V, F, uv)
+    plt, fig, axes = _figure(2)
+    draw_layout(axes[0], F, uv, pf.iso, pf.flipped, title=f"{title} — UV layout (isometric distortion)")
+    draw_checker_3d(axes[1], V, F, uv)
+    fig.tight_layout()
+    with atomic_write(path, "wb") as fh:
+        fig.savefig(fh, format="png")
+    plt.close(fig)

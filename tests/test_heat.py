@@ -1,0 +1,95 @@
+import igl
+import numpy as np
+import pytest
+from conftest import shared_mesh
+
+from heatparam.heat import HeatGeodesics, all_pairs, farthest_point_landmarks, time_step
+from heatparam.operators import build_operators
+
+
+def _solver(V, F, **kw):
+    op = build_operators(V, F)
+    return HeatGeodesics(op, time_step(op, kw.pop("mode", "default"), kw.pop("coef", 1.0)), **kw)
+
+
+def test_heat_kernel_conserves_heat(disk):
+    V, F = disk
+    s = _solver(V, F)
+    U = s.kernels([0, 10])
+    total = np.asarray(s.op.B.sum(axis=0)).ravel() @ U  # ∫u = ∫δ = 1 (Neumann boundary: no flux)
+    assert np.allclose(total, 1.0, atol=1e-10)
+    assert U.min() > -1e-12
+
+
+def test_flat_distances_match_euclidean(disk):
+    V, F = disk
+    s = _solver(V, F)
+    src = np.array([0, 50, 300])
+    D = s.distances(src)
+    E = np.linalg.norm(V[:, None, :] - V[src][None], axis=2)
+    far = E > 0.2
+    rel = np.abs(D - E)[far] / E[far]
+    # stated bound: 1.5% mean relative error on this coarse irregular disk (h ≈ R/24; measured 1.43%).
+    # The heat method smooths distances by ~√t; it is not exact even on a plane.
+    assert rel.mean() < 0.015
+    assert np.all(D[src, np.arange(3)] == 0)
+
+
+def test_cylinder_distances_match_unrolled():
+    from heatparam.shapes import cylinder_patch
+
+    sh = cylinder_patch()
+    s = _solver(sh.V, sh.F)
+    src = np.array([0, len(sh.V) // 2])
+    D = s.distances(src)
+    E = np.linalg.norm(sh.uv_true[:, None] - sh.uv_true[src][None], axis=2)  # convex patch: straight lines
+    far = E > 0.1 * E.max()
+    assert (np.abs(D - E)[far] / E[far]).mean() < 0.015
+
+
+def test_batched_equals_single_and_all_pairs_symmetric(disk):
+    V, F = disk
+    s = _solver(V, F, block_bytes=8 * 12 * len(V) * 3)  # 3 columns per block
+    assert s.block == 3
+    both = s.distances([4, 9, 16, 25])
+    for j, i in enumerate([4, 9, 16, 25]):
+        assert np.allclose(both[:, j], s.distances([i])[:, 0], atol=1e-12)
+    D = all_pairs(s)
+    assert np.array_equal(D, D.T)
+
+
+def test_camelhead_vs_exact_geodesics():
+    V, F = igl.read_triangle_mesh(str(shared_mesh("camelhead.off")))
+    s = _solver(V, F)
+    src = np.array([0, 2000, 5000, 9000])
+    D = s.distances(src)
+    errs = []
+    for j, i in enumerate(src):
+        ex = igl.exact_geodesic(V, F, np.array([i]), np.array([], np.int64), np.arange(len(V)),
+                                np.array([], np.int64))
+        ok = ex > 0
+        errs.append(np.mean(np.abs(D[ok, j] - ex[ok]) / ex[ok]))
+    print("camelhead mean relative error vs exact geodesics:", np.mean(errs))
+    assert np.mean(errs) < 0.02
+
+
+def test_time_step_scaling(disk):
+    V, F = disk
+    op1, op2 = build_operators(V, F), build_operators(1000 * V, F)
+    assert time_step(op2) == pytest.approx(1e6 * time_step(op1))  # default: length²
+    assert time_step(op2, "paper") == pytest.approx(1e3 * time_step(op1, "paper"))  # Eq. 7: length
+    assert time_step(op1, 0.5) == 0.5
+    with pytest.raises(ValueError):
+        time_step(op1, "bogus")
+
+
+def test_farthest_point_landmarks_deterministic_and_spread(disk):
+    V, F = disk
+    s = _solver(V, F)
+    lm1, D1 = farthest_point_landmarks(s, V, 20, seed=3)
+    lm2, D2 = farthest_point_landmarks(s, V, 20, seed=3)
+    assert np.array_equal(lm1, lm2) and np.array_equal(D1, D2)
+    assert len(set(lm1.tolist())) == 20
+    # covering radius: every vertex is within ~ the spacing of 20 points on a unit disk
+    assert D1.min(axis=1).max() < 0.6
+    assert np.allclose(D1, s.distances(lm1))

@@ -1,0 +1,292 @@
+import json
+import math
+
+import numpy as np
+import pytest
+
+from heatparam import metrics as M
+
+
+def grid(nx: int = 6, ny: int = 6, keep=None) -> tuple[np.ndarray, np.ndarray]:
+    """Flat (z=0) grid of nx*ny unit cells, two CCW triangles per cell; `keep(i, j)` selects cells."""
+    x, y = np.meshgrid(np.arange(nx + 1.0), np.arange(ny + 1.0))
+    V = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+    faces = []
+    for j in range(ny):
+        for i in range(nx):
+            if keep is not None and not keep(i, j):
+                continue
+            v00 = j * (nx + 1) + i
+            v10, v01, v11 = v00 + 1, v00 + nx + 1, v00 + nx + 2
+            faces += [(v00, v10, v11), (v00, v11, v01)]
+    F = np.asarray(faces, dtype=np.int64)
+    used = np.unique(F)
+    remap = np.full(len(V), -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    return V[used], remap[F]
+
+
+def brute_crossings(P: np.ndarray, E: np.ndarray, only=None) -> int:
+    """O(n^2) reference: proper crossings + positive-length collinear overlaps, shared vertices skipped."""
+    n = len(E)
+    if only is None:
+        i, j = np.triu_indices(n, 1)
+    else:  # unordered pairs involving at least one edge of `only`
+        i, j = np.repeat(only, n), np.tile(np.arange(n), len(only))
+        keep = ~np.isin(j, only) | (i < j)
+        i, j = i[keep], j[keep]
+    ei, ej = E[i], E[j]
+    share = (ei[:, :1] == ej).any(1) | (ei[:, 1:] == ej).any(1)
+    i, j = i[~share], j[~share]
+    p, q, r, s = P[E[i, 0]], P[E[i, 1]], P[E[j, 0]], P[E[j, 1]]
+
+    def orient(a, b, c):
+        return np.sign((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+
+    o1, o2, o3, o4 = orient(p, q, r), orient(p, q, s), orient(r, s, p), orient(r, s, q)
+    count = int(((o1 * o2 < 0) & (o3 * o4 < 0)).sum())
+    for k in np.flatnonzero((o1 == 0) & (o2 == 0) & (o3 == 0) & (o4 == 0)):
+        d = np.abs(q[k] - p[k]) + np.abs(s[k] - r[k])
+        ax = int(d[1] > d[0])
+        lo = max(min(p[k, ax], q[k, ax]), min(r[k, ax], s[k, ax]))
+        hi = min(max(p[k, ax], q[k, ax]), max(r[k, ax], s[k, ax]))
+        count += lo < hi
+    return count
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Jacobians and distortion
+# ---------------------------------------------------------------------------------------------------------
+def test_identity_map_is_isometric():
+    V, F = grid()
+    d = M.distortion(V, F, V[:, :2])
+    for name in ("iso", "conformal", "area"):
+        for stat in ("mean", "p95", "max"):
+            assert abs(d[f"{name}_{stat}"] - 1.0) < 1e-12
+    assert abs(d["uv_scale"] - 1.0) < 1e-12
+    assert d["flips"] == 0 and d["mirrored"] is False and d["degenerate_faces"] == 0
+    assert d["faces"] == len(F)
+
+
+def test_singular_values_in_3d_frame():
+    V, F = grid(4, 3)
+    rng = np.random.default_rng(1)
+    Rot, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+    V3 = V @ Rot.T + [1.0, -2.0, 3.0]  # tilted plane in 3D, same intrinsic geometry
+    uv = V[:, :2] * [2.0, 1.0]
+    s1, s2, sa, a3 = M.face_jacobian_singular_values(V3, F, uv)
+    np.testing.assert_allclose(s1, 2.0, atol=1e-12)
+    np.testing.assert_allclose(s2, 1.0, atol=1e-12)
+    np.testing.assert_allclose(a3, 0.5, atol=1e-12)
+    np.testing.assert_allclose(sa, 1.0, atol=1e-12)  # CCW and doubled
+    _, _, sa_m, _ = M.face_jacobian_singular_values(V3, F, uv * [-1.0, 1.0])
+    assert (sa_m < 0).all()
+
+
+def test_uniform_scale_is_removed():
+    V, F = grid()
+    d = M.distortion(V, F, 2.0 * V[:, :2])
+    assert abs(d["uv_scale"] - 0.5) < 1e-12
+    assert abs(d["iso_max"] - 1.0) < 1e-12 and abs(d["iso_mean"] - 1.0) < 1e-12
+    assert abs(d["total_area_uv"] - 4.0 * d["total_area_3d"]) < 1e-9
+
+
+def test_anisotropic_stretch():
+    V, F = grid()
+    d = M.distortion(V, F, V[:, :2] * [2.0, 1.0])
+    assert abs(d["uv_scale"] - 1.0 / math.sqrt(2.0)) < 1e-12
+    for stat in ("mean", "p95", "max"):
+        assert abs(d[f"conformal_{stat}"] - 2.0) < 1e-12
+        assert abs(d[f"iso_{stat}"] - math.sqrt(2.0)) < 1e-12
+        assert abs(d[f"area_{stat}"] - 1.0) < 1e-12
+
+
+def test_mirrored_map_has_no_flips():
+    V, F = grid()
+    d = M.distortion(V, F, V[:, :2] * [-1.0, 1.0])
+    assert d["mirrored"] is True and d["flips"] == 0
+    assert abs(d["iso_max"] - 1.0) < 1e-12
+    s = M.summary(V, F, V[:, :2] * [-1.0, 1.0])
+    assert s["bijective"] is True
+
+
+def test_flipped_interior_vertex():
+    V, F = grid()
+    uv = V[:, :2].copy()
+    k = int(np.flatnonzero((V[:, 0] == 2) & (V[:, 1] == 3))[0])
+    uv[k, 0] += 1.6  # past its right neighbour
+    d = M.distortion(V, F, uv)
+    assert d["flips"] >= 1 and d["mirrored"] is False
+    assert d["iso_max"] == math.inf
+    assert math.isfinite(d["iso_mean"])  # mean over the non-flipped faces
+    assert 0 < d["flipped_area_fraction"] < 0.05
+    assert math.isfinite(d["iso_p95"])  # flipped faces cover < 5% of the area
+    pf = M.per_face_distortion(V, F, uv)
+    assert pf.flipped.sum() == d["flips"]
+    assert np.isinf(pf.iso[pf.flipped]).all() and np.isfinite(pf.iso[~pf.flipped]).all()
+    assert M.summary(V, F, uv)["bijective"] is False
+
+
+def test_p95_is_inf_when_many_faces_flip():
+    V, F = grid(4, 4)
+    Fuv = F.copy()
+    q = len(F) // 4
+    Fuv[:q] = Fuv[:q, ::-1]  # corners 0 and 2 swapped in UV: a reflection of 25% of the faces
+    d = M.distortion(V, F, V[:, :2], Fuv=Fuv)
+    assert d["flips"] == q and d["mirrored"] is False
+    assert d["flipped_area_fraction"] == pytest.approx(0.25)
+    assert d["iso_p95"] == math.inf and d["iso_max"] == math.inf
+    assert d["iso_mean"] == pytest.approx(1.0, abs=1e-12)  # mean over the non-flipped faces
+
+
+def test_degenerate_faces_are_skipped():
+    V, F = grid(3, 3)
+    bottom = np.flatnonzero(V[:, 1] == 0)[:3]  # three collinear vertices
+    F2 = np.vstack([F, bottom[None, :]])
+    with np.errstate(all="raise"):
+        d = M.distortion(V, F2, V[:, :2])
+    assert d["degenerate_faces"] == 1 and d["flips"] == 0
+    assert not any(isinstance(v, float) and math.isnan(v) for v in d.values())
+    assert abs(d["iso_max"] - 1.0) < 1e-12
+    pf = M.per_face_distortion(V, F2, V[:, :2])
+    assert not np.isnan(pf.iso).any() and pf.iso[-1] == math.inf and not pf.flipped[-1]
+
+
+def test_per_corner_uv_matches_shared_uv():
+    V, F = grid(6, 5)
+    uv = V[:, :2] * [1.5, 0.7] + 0.05 * np.sin(V[:, :2] @ [[1.0, 0.3], [0.2, 1.0]])
+    n = len(V)
+    right = V[F].mean(axis=1)[:, 0] > 3.0
+    Fuv = F.copy()
+    Fuv[right] += n  # second chart: its own copies of the uv vertices
+    c, s = math.cos(0.7), math.sin(0.7)
+    uv2 = np.vstack([uv, uv @ np.array([[c, s], [-s, c]]) + [20.0, 5.0]])  # rigidly moved apart
+    d_shared = M.distortion(V, F, uv)
+    d_charts = M.distortion(V, F, uv2, Fuv)
+    assert d_shared.keys() == d_charts.keys()
+    for key, val in d_shared.items():
+        assert d_charts[key] == pytest.approx(val, rel=1e-12, abs=1e-12), key
+    s_charts = M.summary(V, F, uv2, Fuv)
+    assert s_charts["boundary_crossings"] == 0 and s_charts["bijective"] is True
+    assert len(M.boundary_loops(Fuv)) == 2 and len(M.boundary_loops(F)) == 1
+
+
+def test_duplicated_corner_uvs_are_welded():
+    V, F = grid(5, 5)
+    uv = V[:, :2] * [1.0, 1.3]
+    uvc = uv[F].reshape(-1, 2)
+    Fuv = np.arange(3 * len(F), dtype=np.int64).reshape(-1, 3)
+    assert M.summary(V, F, uvc, Fuv) == M.summary(V, F, uv)
+    uvw, Fw = M.weld_uv(F, uvc, Fuv)
+    assert len(uvw) == len(V)
+    np.testing.assert_array_equal(uvw[Fw], uv[F])
+
+
+def test_summary_is_json_serializable():
+    V, F = grid()
+    uv = V[:, :2].copy()
+    uv[8, 0] += 1.6
+    s = M.summary(V, F, uv)
+    json.loads(json.dumps(s))
+    assert all(type(v) in (int, float, bool) for v in s.values())
+    keys = {"flips", "boundary_crossings", "bijective", "uv_scale", "mirrored", "degenerate_faces"}
+    assert keys <= s.keys()
+
+
+# ---------------------------------------------------------------------------------------------------------
+# boundaries
+# ---------------------------------------------------------------------------------------------------------
+def test_boundary_loops():
+    V, F = grid(5, 4)
+    (loop,) = M.boundary_loops(F)
+    assert len(loop) == 18 and len(set(loop.tolist())) == 18
+    nxt = np.roll(loop, -1)
+    edges = {tuple(e) for e in M.boundary_edges(F).tolist()}
+    assert all((a, b) in edges for a, b in zip(loop.tolist(), nxt.tolist(), strict=True))
+    _, Fa = grid(5, 5, keep=lambda i, j: not (1 < i < 3 and 1 < j < 4))  # annulus
+    assert sorted(len(lp) for lp in M.boundary_loops(Fa)) == [6, 20]
+    bowtie = np.array([[0, 1, 2], [0, 3, 4]], dtype=np.int64)
+    loops = M.boundary_loops(bowtie)
+    assert sorted(sorted(lp.tolist()) for lp in loops) == [[0, 1, 2], [0, 3, 4]]
+    closed = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]], dtype=np.int64)
+    assert M.boundary_loops(closed) == []
+
+
+def u_strip():
+    return grid(7, 7, keep=lambda i, j: j < 2 or i < 2 or i >= 5)
+
+
+def test_boundary_crossings_folded_strip():
+    V, F = u_strip()
+    uv = V[:, :2].copy()
+    assert M.boundary_crossings(uv, F) == 0
+    assert M.summary(V, F, uv)["bijective"] is True
+    arm = (V[:, 0] >= 5) & (V[:, 1] >= 3)
+    t = math.radians(100.0)
+    R = np.array([[math.cos(t), -math.sin(t)], [math.sin(t), math.cos(t)]])
+    pivot = np.array([5.2, 2.4])
+    uv[arm] = (uv[arm] - pivot) @ R.T + pivot  # swing the right arm over the left one
+    n = M.boundary_crossings(uv, F)
+    assert n > 0
+    assert n == brute_crossings(uv, M.boundary_edges(F))
+    assert M.summary(V, F, uv)["bijective"] is False
+
+
+def test_boundary_crossings_large_circle():
+    n = 50_000
+    th = 2 * np.pi * np.arange(n) / n
+    uv = np.vstack([np.column_stack([np.cos(th), np.sin(th)]), [[0.0, 0.0]]])
+    F = np.column_stack([np.full(n, n), np.arange(n), (np.arange(n) + 1) % n]).astype(np.int64)
+    assert M.boundary_crossings(uv, F) == 0
+    swaps = [1_000, 11_000, 21_000, 31_000]
+    for k in swaps:  # swapping two consecutive vertices makes edges (k-1, k) and (k+1, k+2) cross once
+        uv[[k, k + 1]] = uv[[k + 1, k]]
+    spike = 41_000  # vertex pulled across the disk: its two edges exit the polygon on the far side
+    a = th[spike] + np.pi + 0.3 * (2 * np.pi / n)
+    uv[spike] = 1.05 * np.array([np.cos(a), np.sin(a)])
+    E = M.boundary_edges(F)
+    spike_edges = np.flatnonzero((E == spike).any(axis=1))
+    expected = len(swaps) + brute_crossings(uv, E, only=spike_edges)
+    assert expected == len(swaps) + 2
+    assert M.boundary_crossings(uv, F) == expected
+
+
+def test_segment_crossings_match_brute_force():
+    rng = np.random.default_rng(7)
+    for trial in range(12):
+        n = int(rng.integers(20, 600))
+        if trial % 3 == 0:  # random segment soup
+            P, E = rng.random((n, 2)), rng.integers(0, n, (n, 2))
+        elif trial % 3 == 1:  # integer coordinates: many collinear overlaps and touching
+            P, E = np.floor(rng.random((n, 2)) * 12), rng.integers(0, n, (n, 2))
+        else:  # closed random walk mixing tiny and very long edges (grid refinement path)
+            steps = rng.standard_normal((n, 2)) * np.where(rng.random((n, 1)) < 0.05, 30.0, 0.01)
+            P = np.cumsum(steps, axis=0)
+            E = np.column_stack([np.arange(n), (np.arange(n) + 1) % n])
+        assert M._segment_crossings(P, E) == brute_crossings(P, E), trial
+
+
+# ---------------------------------------------------------------------------------------------------------
+# stress
+# ---------------------------------------------------------------------------------------------------------
+def test_stress():
+    V, F = grid(5, 5)
+    uv = V[:, :2]
+    sources = np.array([0, 7, 20, 35])
+    D = np.linalg.norm(uv[:, None, :] - uv[sources][None, :, :], axis=2)
+    assert M.stress(uv, D, sources) < 1e-14
+    rng = np.random.default_rng(3)
+    uvp = uv + 0.05 * rng.standard_normal(uv.shape)
+    ref = math.sqrt(
+        sum(
+            (np.linalg.norm(uvp[i] - uvp[s]) - D[i, j]) ** 2
+            for i in range(len(uv))
+            for j, s in enumerate(sources)
+        )
+        / (D**2).sum()
+    )
+    got = M.stress(uvp, D, sources)
+    assert got > 0 and got == pytest.approx(ref, rel=1e-12)
+    assert M.stress(2 * uv, D, sources) == pytest.approx(1.0, rel=1e-12)  # no rescaling
+    with pytest.raises(ValueError):
+        M.stress(uv, D.T, sources)
