@@ -1,10 +1,11 @@
 import igl
 import numpy as np
 import pytest
-from conftest import shared_mesh
 
 from heatparam.heat import HeatGeodesics, all_pairs, farthest_point_landmarks, time_step
 from heatparam.operators import build_operators
+
+from conftest import shared_mesh
 
 
 def _solver(V, F, **kw):

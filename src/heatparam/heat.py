@@ -7,7 +7,7 @@ divergence). No Python loop runs per vertex.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -68,52 +68,68 @@ class HeatGeodesics:
         self._lumped = np.asarray(op.B.sum(axis=1)).ravel()  # ∫ of each hat function
         self._AA = np.concatenate([op.areas, op.areas])[:, None]
 
-    def kernels(self, sources: Sequence[int]) -> np.ndarray:
+    def _weights(self, sources) -> sp.csc_matrix:
+        """Sources as an (n,k) sparse weight matrix: vertex indices → unit columns; a matrix is taken as is."""
+        if sp.issparse(sources):
+            return sp.csc_matrix(sources)
+        src = np.asarray(sources, dtype=np.int64)
+        return sp.csc_matrix((np.ones(len(src)), (src, np.arange(len(src)))), shape=(self.n, len(src)))
+
+    def kernels(self, sources) -> np.ndarray:
         """Heat kernels u_i(·, T) (Eq. 4 with one step Δt = T) for the given sources, (n,k).
 
-        The initial condition is the discrete Dirac δ_i of Eq. 3 (∫δ_i = 1): δ_i = e_i / ∫φ_i.
+        sources : vertex indices (k,), or an (n,k) sparse matrix of barycentric weights (point sources).
+        The initial condition is the discrete Dirac δ_i of Eq. 3 (∫δ_i = 1): δ_i = Σ_v w_v e_v / ∫φ_v.
         """
-        src = np.asarray(sources, dtype=np.int64)
-        delta = sp.csc_matrix(
-            (1.0 / self._lumped[src], (src, np.arange(len(src)))), shape=(self.n, len(src))
-        )
+        W = self._weights(sources)
+        delta = sp.diags(1.0 / self._lumped) @ W
         return self.heat.solve((self.op.B @ delta).toarray())
 
-    def _distances_block(self, src: np.ndarray) -> np.ndarray:
-        u = self.kernels(src)
+    def _distances_block(self, W: sp.csc_matrix) -> np.ndarray:
+        u = self.kernels(W)
+        k = W.shape[1]
         m = len(self.op.areas)
-        grad = (self.op.G @ u).reshape(2, m, len(src))  # per-face ∇u in local frames
+        grad = (self.op.G @ u).reshape(2, m, k)  # per-face ∇u in local frames
         norm = np.sqrt(grad[0] ** 2 + grad[1] ** 2)
         norm[norm == 0] = 1.0  # flat regions: no direction, zero field
-        X = (-grad / norm).reshape(2 * m, len(src))  # Eq. 8: unit field pointing away from the source
+        X = (-grad / norm).reshape(2 * m, k)  # Eq. 8: unit field pointing away from the source
         rhs = self.op.G.T @ (self._AA * X)  # −div X (Eq. 9-10 right-hand side, B·K in the paper)
-        phi = np.zeros((self.n, len(src)))
+        phi = np.zeros((self.n, k))
         phi[1:] = self.poisson.solve(rhs[1:])
-        phi -= phi[src, np.arange(len(src))]  # the source is at distance 0
+        phi -= np.asarray(W.multiply(phi).sum(axis=0))  # the source (point) is at distance 0
         np.maximum(phi, 0.0, out=phi)  # tiny negative values near the source are discretization noise
         return phi
 
     def distances(
         self,
-        sources: Sequence[int],
+        sources,
         out: np.ndarray | None = None,
         progress: Callable[[int], None] | None = None,
     ) -> np.ndarray:
         """Geodesic distances from each source to every vertex, (n,k); column j belongs to ``sources[j]``.
 
+        sources : vertex indices (k,), or an (n,k) sparse matrix whose column j holds the barycentric weights
+            of a source point inside a face (see :func:`point_sources`).
+
         ``out`` may be a preallocated (n,k) array (any float dtype). ``progress(c)`` is called after each
         batch with the number of columns done.
         """
-        src = np.asarray(sources, dtype=np.int64)
+        W = self._weights(sources)
+        k = W.shape[1]
         if out is None:
-            require(8.0 * self.n * len(src), f"distance matrix {self.n} x {len(src)}",
-                    "use fewer sources (landmarks)")
-            out = np.empty((self.n, len(src)))
-        for s in range(0, len(src), self.block):
-            out[:, s : s + self.block] = self._distances_block(src[s : s + self.block])
+            require(8.0 * self.n * k, f"distance matrix {self.n} x {k}", "use fewer sources (landmarks)")
+            out = np.empty((self.n, k))
+        for s in range(0, k, self.block):
+            out[:, s : s + self.block] = self._distances_block(W[:, s : s + self.block])
             if progress is not None:
-                progress(min(self.block, len(src) - s))
+                progress(min(self.block, k - s))
         return out
+
+
+def point_sources(F: np.ndarray, face: np.ndarray, bary: np.ndarray, n: int) -> sp.csc_matrix:
+    """Sparse (n,p) weights of p points inside faces: column j = bary[j] on the corners of F[face[j]]."""
+    p = len(face)
+    return sp.csc_matrix((bary.ravel(), (F[face].ravel(), np.repeat(np.arange(p), 3))), shape=(n, p))
 
 
 def all_pairs_bytes(n: int) -> float:

@@ -7,6 +7,7 @@ and trimesh for glTF/GLB scenes. Quads and polygons are fan-triangulated.
 from __future__ import annotations
 
 import contextlib
+import io
 import json
 import os
 import tempfile
@@ -63,10 +64,16 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
 def _load_meshio(p: Path) -> tuple[np.ndarray, np.ndarray]:
     import meshio
 
-    with warnings.catch_warnings():
+    quiet = contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO())
+    with warnings.catch_warnings(), quiet[0], quiet[1]:
         warnings.simplefilter("ignore")
-        m = meshio.read(p)
+        try:
+            m = meshio.read(p)
+        except SystemExit:  # meshio's OFF reader exits on some parse errors instead of raising
+            raise HeatparamError(f"cannot read {p}: not a valid {p.suffix[1:].upper()} file") from None
     V = np.asarray(m.points, dtype=np.float64)
+    if V.size == 0:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
     if V.ndim != 2 or V.shape[1] not in (2, 3):
         raise HeatparamError(f"cannot read {p}: vertices must have 2 or 3 coordinates")
     if V.shape[1] == 2:

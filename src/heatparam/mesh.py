@@ -123,12 +123,15 @@ def validate_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
     _, cnt_d = np.unique(he, axis=0, return_counts=True)
     if (cnt_d > 1).any():
         raise MeshError(
-            f"{int((cnt_d > 1).sum())} edges are shared by faces of opposite orientation"
-            " — the surface is non-orientable or inconsistently oriented; reorient the faces first"
+            f"{int((cnt_d > 1).sum())} edges run the same way in both of their faces: the faces are inconsistently"
+            " oriented (or the surface is non-orientable) — reorient the faces first"
         )
     referenced = np.zeros(n, dtype=bool)
     referenced[F.ravel()] = True
-    nonman_v = ~np.asarray(igl.is_vertex_manifold(F), dtype=bool) & referenced
+    manifold_v = np.ones(n, dtype=bool)
+    vm = np.asarray(igl.is_vertex_manifold(F), dtype=bool)  # sized max(F)+1
+    manifold_v[: len(vm)] = vm
+    nonman_v = ~manifold_v & referenced
     if nonman_v.any():
         raise MeshError(
             f"{int(nonman_v.sum())} non-manifold vertices (faces meeting at a single vertex, first: vertex "

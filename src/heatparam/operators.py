@@ -139,12 +139,18 @@ def build_operators(V: np.ndarray, F: np.ndarray, mass: str = "lumped", delaunay
         intrinsically until every cotangent weight is non-negative. On irregular meshes this is what makes the
         heat method accurate (camelhead.off, t = h²: mean geodesic error 2.2% → 1.2%); on good meshes it
         changes nothing.
-    delta : mollification slack, relative to the mean edge length.
+    delta : mollification slack, relative to the mean edge length (edge lengths are rounded to 2^-24 of it).
     """
     raw = edge_lengths(V, F)
-    lengths, eps = mollify(raw, delta * float(raw.mean()))
+    h = float(raw.mean())
+    # Discrete decisions (which faces to mollify, which edges to flip) are taken on lengths in units of the
+    # mean edge, snapped to 2^-24: a mesh scaled by s then gets the very same triangulation (exact Delaunay
+    # ties on regular grids would otherwise be broken by rounding), so the map is exactly scale-invariant.
+    unit = np.round(raw / h * 2.0**24) / 2.0**24
+    unit, eps = mollify(unit, delta)
     if delaunay:
-        lengths, F = igl.intrinsic_delaunay_triangulation(lengths, F)[:2]
+        unit, F = igl.intrinsic_delaunay_triangulation(unit, F)[:2]
+    lengths, eps = unit * h, eps * h
     L = cotan_laplacian(lengths, F)
     B = mass_matrix(lengths, F, mass)
     G = gradient_operator(lengths, F, len(V))

@@ -15,7 +15,7 @@ import numpy as np
 
 from heatparam import __version__, heat, mds, metrics
 from heatparam.errors import HeatparamError
-from heatparam.memory import peak_rss_bytes
+from heatparam.memory import peak_rss_bytes, require
 from heatparam.mesh import MeshInfo, validate_mesh
 from heatparam.operators import MASS_KINDS, build_operators
 from heatparam.progress import Progress
@@ -23,6 +23,7 @@ from heatparam.solvers import BACKENDS
 
 FILL_MODES = ("auto", "poisson", "none")
 GEODESIC_MODES = ("auto", "all-pairs", "landmarks")
+REFINE_MODES = ("none",)
 
 
 @dataclass
@@ -40,6 +41,8 @@ class Options:
     seed : seeds every random choice (first landmark, Lanczos start vector): same seed, same output.
     all_pairs_max : largest vertex count for which ``auto`` takes the all-pairs path.
     stress_sources : number of sources for the sampled Eq. 1 stress in the report.
+    fill_depth : Poisson reconstruction depth for the fill (0 = automatic from the mesh size).
+    refine : post-MDS refinement (``none`` returns the paper's raw MDS map).
     progress : show stage messages and progress bars on stderr.
     """
 
@@ -53,6 +56,8 @@ class Options:
     seed: int = 0
     all_pairs_max: int = 3000
     stress_sources: int = 32
+    fill_depth: int = 0
+    refine: str = "none"
     progress: bool = False
 
     def validate(self) -> None:
@@ -67,6 +72,9 @@ class Options:
             raise HeatparamError(f"time_step must be positive, got {self.time_step}")
         if self.landmarks < 0 or self.landmarks == 1 or self.landmarks == 2:
             raise HeatparamError(f"landmarks must be 0 (automatic) or at least 3, got {self.landmarks}")
+        _choice("refine", self.refine, REFINE_MODES)
+        if self.fill_depth < 0:
+            raise HeatparamError(f"fill_depth must be 0 (automatic) or positive, got {self.fill_depth}")
         if not self.t_coef > 0:
             raise HeatparamError(f"t_coef must be positive, got {self.t_coef}")
 
@@ -117,12 +125,25 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     remap[keep] = np.arange(len(keep))
     Vc, Fc = V[keep], remap[F]
 
-    fill_used, fill_reason = _decide_fill(opts.fill, info)
+    fill_used, fill_reason = _decide_fill(opts, Vc, Fc, info)
+    fill_report: dict = {"used": fill_used, "reason": fill_reason}
     if fill_used:
-        raise HeatparamError("--fill poisson is not available yet (the Poisson fill is being built)")
+        from heatparam import fill
 
-    layout = _geodesic_layout(Vc, Fc, opts, prog)
+        with prog.stage("fill"):
+            M = fill.poisson_fill(Vc, Fc, info, seed=opts.seed, depth=opts.fill_depth)
+        fill_report.update(M.report)
+        warnings += M.warnings
+        layout = _geodesic_layout(M.V, M.F, opts, prog, points=(M.face, M.bary))
+    else:
+        layout = _geodesic_layout(Vc, Fc, opts, prog)
     uvc = mds.orient_layout(layout.uv, Fc)
+    refine_report: dict = {"method": opts.refine}
+    if opts.refine != "none":
+        from heatparam import refine
+
+        with prog.stage("refine"):
+            uvc, refine_report = refine.refine(Vc, Fc, uvc, opts, progress=prog)
 
     uv = np.zeros((len(V), 2))
     uv[keep] = uvc
@@ -130,10 +151,7 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
 
     with prog.stage("metrics"):
         summary = metrics.summary(Vc, Fc, uvc)
-        summary["stress_rel_rms"] = metrics.stress(
-            np.vstack([uvc, layout.uv_landmarks if layout.uv_landmarks is not None else uvc[:0]]),
-            layout.D_points, layout.stress_columns,
-        )
+        summary["stress_rel_rms"] = metrics.stress(uvc, layout.D_points, layout.stress_columns)
     if summary["flips"] or summary["boundary_crossings"]:
         warnings.append(
             f"the map is not bijective: {summary['flips']} flipped triangles, "
@@ -147,7 +165,7 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
         "parameters": {**{f.name: getattr(opts, f.name) for f in fields(opts)},
                        "time_step_value": layout.t, "landmarks_used": layout.k},
         "method": {"geodesics": layout.mode, "solver_backend": layout.backend,
-                   "fill": "poisson" if fill_used else "none", "fill_reason": fill_reason,
+                   "fill": fill_report, "refine": refine_report,
                    "mass_matrix": opts.mass, "mollified_edge_length": layout.mollify_eps},
         "mesh": info.as_dict(),
         "metrics": summary,
@@ -159,20 +177,21 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     return Result(uv, report)
 
 
-def _decide_fill(mode: str, info: MeshInfo) -> tuple[bool, str]:
+def _decide_fill(opts: Options, V: np.ndarray, F: np.ndarray, info: MeshInfo) -> tuple[bool, str]:
     """Whether to compute on a Poisson fill M* (§2.5), and why."""
-    if mode == "none":
+    if opts.fill == "none":
         return False, "disabled (--fill none)"
-    if mode == "poisson":
+    if opts.fill == "poisson":
         return True, "requested (--fill poisson)"
-    return False, "auto: the Poisson fill is not available yet"
+    from heatparam import fill
+
+    return fill.needs_fill(V, F, info)
 
 
 class Layout(NamedTuple):
     uv: np.ndarray  # (n,2) MDS layout of the points
-    uv_landmarks: np.ndarray | None  # (k,2) landmark positions when they are not among the points
     D_points: np.ndarray  # (n_points, c) geodesic distances used for the stress sample
-    stress_columns: np.ndarray  # (c,) row index (in [uv; uv_landmarks]) of each column's source
+    stress_columns: np.ndarray  # (c,) point index of each column's source
     mode: str
     k: int
     t: float
@@ -180,15 +199,21 @@ class Layout(NamedTuple):
     mollify_eps: float
 
 
-def _geodesic_layout(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress) -> Layout:
-    """Heat geodesics on (V, F) and MDS of its vertices (Eq. 4-14)."""
+def _geodesic_layout(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress,
+                     points: tuple[np.ndarray, np.ndarray] | None = None) -> Layout:
+    """Heat geodesics on (V, F) and MDS (Eq. 4-14) of its vertices, or of ``points`` located on it.
+
+    points : (face (p,), bary (p,3)) — points on the surface (V, F), e.g. the vertices of M located on a fill
+        surface M*. Their distances are interpolated from the landmark distance fields, and they are placed by
+        landmark MDS with the landmarks on (V, F).
+    """
     n = len(V)
     mode = opts.geodesics
     if mode == "auto":
         mode = "all-pairs" if n <= opts.all_pairs_max else "landmarks"
+    if points is not None:
+        mode = "landmarks" if opts.geodesics != "all-pairs" else "all-pairs"
     if mode == "all-pairs":
-        from heatparam.memory import require
-
         require(heat.all_pairs_bytes(n), f"all-pairs geodesics on {n} vertices ({n} x {n} matrix)",
                 "use --geodesics landmarks (or auto)")
     with prog.stage("operators"):
@@ -197,7 +222,7 @@ def _geodesic_layout(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress
     with prog.stage("factorize"):
         solver = heat.HeatGeodesics(op, t, backend=opts.solver)
     rng = np.random.default_rng(opts.seed)
-    if mode == "all-pairs":
+    if mode == "all-pairs" and points is None:
         with prog.stage("geodesics"), prog.bar(n, "geodesics") as bar:
             D = heat.all_pairs(solver, progress=bar.update)
         cols = np.sort(rng.choice(n, size=min(n, opts.stress_sources), replace=False))
@@ -205,11 +230,26 @@ def _geodesic_layout(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress
         with prog.stage("mds"):
             uv = mds.classical_mds(D, seed=opts.seed, overwrite=True)
         del D
-        return Layout(uv, None, D_stress, cols, mode, n, t, solver.backend, op.mollify_eps)
-    k = opts.landmarks or default_landmarks(n)
+        return Layout(uv, D_stress, cols, mode, n, t, solver.backend, op.mollify_eps)
+    k = n if mode == "all-pairs" else (opts.landmarks or default_landmarks(n))
     with prog.stage("geodesics"), prog.bar(k + 1, "landmark geodesics") as bar:
-        lm, DL = heat.farthest_point_landmarks(solver, V, k, seed=opts.seed, progress=bar.update)
+        if k >= n:
+            lm = np.arange(n)
+            DL = solver.distances(lm, progress=bar.update)
+        else:
+            lm, DL = heat.farthest_point_landmarks(solver, V, k, seed=opts.seed, progress=bar.update)
+    if points is None:
+        with prog.stage("mds"):
+            uv, _ = mds.landmark_mds(DL, lm)
+        cols = np.arange(min(k, opts.stress_sources))
+        return Layout(uv, DL[:, cols], lm[cols], mode, k, t, solver.backend, op.mollify_eps)
+    face, bary = points
     with prog.stage("mds"):
-        uv, _ = mds.landmark_mds(DL, lm)
-    cols = np.arange(min(k, opts.stress_sources))
-    return Layout(uv, None, DL[:, cols], lm[cols], mode, k, t, solver.backend, op.mollify_eps)
+        DP = np.einsum("pc,pck->pk", bary, DL[F[face]])  # landmark distances interpolated at the points
+        uv, _ = mds.landmark_mds(DP, Dkk=DL[lm])
+    # Stress sample: distances on the fill surface from a few of the points themselves (point sources).
+    with prog.stage("geodesics"):
+        cols = np.sort(rng.choice(len(face), size=min(len(face), opts.stress_sources), replace=False))
+        Ds = solver.distances(heat.point_sources(F, face[cols], bary[cols], n))
+        D_stress = np.einsum("pc,pck->pk", bary, Ds[F[face]])
+    return Layout(uv, D_stress, cols, mode, k, t, solver.backend, op.mollify_eps)

@@ -1,0 +1,174 @@
+"""Command line: round trip, subcommands, and one test per bad-input case (exit 2, one line, no file)."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from heatparam import io, shapes
+from heatparam.cli import main
+
+from conftest import shared_mesh
+
+
+def write_off(path, V, F):
+    with open(path, "w") as fh:
+        fh.write(f"OFF\n{len(V)} {len(F)} 0\n")
+        np.savetxt(fh, V, fmt="%.17g")
+        np.savetxt(fh, np.column_stack([np.full(len(F), 3), F]), fmt="%d")
+
+
+@pytest.fixture(scope="module")
+def patch_off(tmp_path_factory):
+    sh = shapes.cylinder_patch(h=0.08)
+    p = tmp_path_factory.mktemp("in") / "patch.off"
+    write_off(p, sh.V, sh.F)
+    return p, sh
+
+
+def test_unwrap_round_trip(tmp_path, patch_off):
+    src, sh = patch_off
+    out, rep, prev = tmp_path / "out.obj", tmp_path / "r.json", tmp_path / "p.png"
+    before = src.read_bytes()
+    code = main(["unwrap", str(src), "-o", str(out), "--report", str(rep), "--preview", str(prev), "--quiet",
+                 "--fill", "none"])
+    assert code == 0
+    assert src.read_bytes() == before  # the input is never touched
+    V, F, UV, FUV = io.load_uv_obj(out)
+    assert np.allclose(V, sh.V, rtol=0, atol=1e-15)  # vertices in input order, exactly
+    assert np.array_equal(F, sh.F) and np.array_equal(FUV, sh.F)  # every face has vt, one vt per vertex
+    assert UV.shape == (len(sh.V), 2)
+    r = json.loads(rep.read_text())
+    for key in ("parameters", "timings_s", "mesh", "metrics"):
+        assert key in r
+    assert r["mesh"]["boundary_loops"] == 1 and r["metrics"]["flips"] == 0
+    assert prev.stat().st_size > 10_000 and prev.read_bytes()[:4] == b"\x89PNG"
+    assert not list(tmp_path.glob(".*.tmp"))  # no temporary files left behind
+
+
+def test_evaluate_prints_metrics(tmp_path, patch_off, capsys):
+    src, _ = patch_off
+    out = tmp_path / "out.obj"
+    assert main(["unwrap", str(src), "-o", str(out), "--quiet", "--fill", "none"]) == 0
+    capsys.readouterr()
+    rep = tmp_path / "eval.json"
+    assert main(["evaluate", str(out), "--report", str(rep)]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["flips"] == 0 and "iso_mean" in printed
+    assert json.loads(rep.read_text())["metrics"] == printed
+
+
+def test_geodesics_command(tmp_path, patch_off):
+    src, sh = patch_off
+    out = tmp_path / "d.npy"
+    assert main(["geodesics", str(src), "--source", "0", "5", "-o", str(out), "--quiet"]) == 0
+    D = np.load(out)
+    assert D.shape == (len(sh.V), 2) and D[0, 0] == 0 and D[5, 1] == 0
+
+
+def test_demo(tmp_path):
+    assert main(["demo", "-o", str(tmp_path / "demo"), "--quiet"]) == 0
+    for name in ("demo.obj", "demo-report.json", "demo-preview.png"):
+        assert (tmp_path / "demo" / name).stat().st_size > 0
+
+
+def test_console_script_bad_input_no_traceback(tmp_path):
+    bad = tmp_path / "x.off"
+    bad.write_text("this is not a mesh\n")
+    r = subprocess.run([sys.executable, "-m", "heatparam.cli", "unwrap", str(bad), "-o", str(tmp_path / "o.obj")],
+                       capture_output=True, text=True)
+    assert r.returncode == 2
+    assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert not (tmp_path / "o.obj").exists()
+
+
+def _bad_case(tmp_path, capsys, name, text, expect):
+    src = tmp_path / name
+    src.write_text(text)
+    out = tmp_path / "out.obj"
+    out.write_text("previous content\n")  # an existing output must survive a failed run
+    code = main(["unwrap", str(src), "-o", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.startswith("heatparam: error:") and err.count("\n") == 1, err
+    assert expect in err, err
+    assert out.read_text() == "previous content\n"
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+QUAD = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+
+
+@pytest.mark.parametrize(
+    "name,text,expect",
+    [
+        ("empty.obj", "", "no triangles"),
+        ("garbage.off", "OFF\n3 1 0\nnot numbers at all\n", "cannot read"),
+        ("nan.obj", QUAD.replace("v 1 1 0", "v nan 1 0") + "f 1 2 3\nf 1 3 4\n", "NaN"),
+        ("inf.obj", QUAD.replace("v 1 1 0", "v inf 1 0") + "f 1 2 3\nf 1 3 4\n", "infinite"),
+        ("range.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 9\n", "out of range"),
+        ("nonmanifold_edge.obj", QUAD + "v 0.5 0.5 1\nf 1 2 3\nf 1 3 4\nf 1 3 5\n", "non-manifold edges"),
+        ("bowtie.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv -1 0 0\nv 0 -1 0\nf 1 2 3\nf 1 4 5\n", "non-manifold vertices"),
+        ("two_parts.obj", QUAD + "v 5 5 0\nv 6 5 0\nv 6 6 0\nf 1 2 3\nf 1 3 4\nf 5 6 7\n", "connected components"),
+        ("flipped.obj", QUAD + "f 1 2 3\nf 1 4 3\n", "orient"),
+        ("tetra.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 3 1 4\n", "closed mesh"),
+        ("unknown.xyz", "1 2 3\n", "unsupported format"),
+    ],
+)
+def test_bad_input(tmp_path, capsys, name, text, expect):
+    _bad_case(tmp_path, capsys, name, text, expect)
+
+
+def test_missing_file(tmp_path, capsys):
+    code = main(["unwrap", str(tmp_path / "nope.obj"), "-o", str(tmp_path / "o.obj")])
+    assert code == 2 and "no such file" in capsys.readouterr().err
+
+
+def test_closed_and_nearly_closed_public_meshes(tmp_path, capsys):
+    for name, expect in (("cow.off", "closed mesh"), ("3holes.off", "closed mesh"),
+                         ("stanford-bunny.obj", "nearly closed")):
+        out = tmp_path / "o.obj"
+        assert main(["unwrap", str(shared_mesh(name)), "-o", str(out), "--quiet"]) == 2
+        err = capsys.readouterr().err
+        assert expect in err and err.count("\n") == 1
+        assert not out.exists()
+
+
+def test_zero_area_faces_handled_and_reported(tmp_path):
+    sh = shapes.cylinder_patch(h=0.08)
+    V, F = sh.V.copy(), sh.F.copy()
+    # collapse one interior triangle onto a line: move a vertex onto the midpoint of the opposite edge
+    f = F[len(F) // 2]
+    V[f[2]] = 0.5 * (V[f[0]] + V[f[1]])
+    src = tmp_path / "degenerate.off"
+    write_off(src, V, F)
+    rep = tmp_path / "r.json"
+    assert main(["unwrap", str(src), "-o", str(tmp_path / "o.obj"), "--report", str(rep), "--quiet",
+                 "--fill", "none"]) == 0
+    r = json.loads(rep.read_text())
+    assert r["mesh"]["zero_area_faces"] >= 1
+    assert r["method"]["mollified_edge_length"] > 0
+    assert any("zero-area" in w for w in r["warnings"])
+
+
+def test_output_equal_to_input_refused(tmp_path, patch_off, capsys):
+    src, _ = patch_off
+    obj = tmp_path / "in.obj"
+    io.save_uv_obj(obj, *io.load_mesh(src), np.zeros((len(io.load_mesh(src)[0]), 2)))
+    before = obj.read_bytes()
+    assert main(["unwrap", str(obj), "-o", str(obj), "--quiet"]) == 2
+    assert "is the input" in capsys.readouterr().err
+    assert obj.read_bytes() == before
+
+
+def test_all_pairs_guard(tmp_path, patch_off, capsys, monkeypatch):
+    from heatparam import memory
+
+    monkeypatch.setattr(memory, "available_bytes", lambda: 10_000)
+    src, _ = patch_off
+    out = tmp_path / "o.obj"
+    assert main(["unwrap", str(src), "-o", str(out), "--geodesics", "all-pairs", "--quiet", "--fill", "none"]) == 2
+    err = capsys.readouterr().err
+    assert "GiB" in err and "landmarks" in err and not out.exists()

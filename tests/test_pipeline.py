@@ -1,0 +1,84 @@
+import numpy as np
+import pytest
+
+from heatparam import shapes
+from heatparam.errors import HeatparamError
+from heatparam.pipeline import Options, parameterize
+
+
+@pytest.fixture(scope="module")
+def cylinder():
+    return shapes.cylinder_patch()
+
+
+def test_convex_developable_patch_true_scale(cylinder):
+    """Issue 2 acceptance: the paper's raw MDS map of a cylinder patch (all-pairs, no refinement)."""
+    uv, rep = parameterize(cylinder.V, cylinder.F, geodesics="all-pairs", fill="none", refine="none")
+    m = rep["metrics"]
+    assert m["flips"] == 0 and m["boundary_crossings"] == 0
+    assert m["iso_mean"] <= 1.10
+    err = shapes.layout_error(uv, cylinder.uv_true)  # rigid motion only: a wrong scale fails this
+    print(f"cylinder raw MDS: iso {m['iso_mean']:.4f}, layout error {err:.4f}, uv_scale {m['uv_scale']:.4f}")
+    assert err <= 0.02
+    assert rep["method"]["geodesics"] == "all-pairs"
+
+
+def test_landmark_path_matches_all_pairs_quality(cylinder):
+    """Issue 4 acceptance: landmark MDS gives the same map quality as all-pairs (mean iso within 1%)."""
+    _, ra = parameterize(cylinder.V, cylinder.F, geodesics="all-pairs", fill="none", refine="none")
+    _, rl = parameterize(cylinder.V, cylinder.F, geodesics="landmarks", fill="none", refine="none")
+    ia, il = ra["metrics"]["iso_mean"], rl["metrics"]["iso_mean"]
+    print(f"iso all-pairs {ia:.4f}, landmarks {il:.4f}")
+    assert abs(il - ia) / ia <= 0.01
+    assert rl["method"]["geodesics"] == "landmarks" and rl["parameters"]["landmarks_used"] == 200
+
+
+def test_scale_invariance_default_vs_paper(cylinder):
+    """Default t = c·h² gives the same map (up to the scale) for a mesh scaled by 1000; Eq. 7 does not."""
+    def run(V, ts):
+        uv, _ = parameterize(V, cylinder.F, geodesics="all-pairs", fill="none", refine="none", time_step=ts)
+        return uv
+
+    uv1, uv2 = run(cylinder.V, "default"), run(1000 * cylinder.V, "default")
+    assert shapes.layout_error(uv2 / 1000, uv1) < 1e-6
+    p1, p2 = run(cylinder.V, "paper"), run(1000 * cylinder.V, "paper")
+    diff = shapes.layout_error(p2 / 1000, p1)
+    print(f"paper time step: scaled-map difference {diff:.4f} of the diameter")
+    assert diff > 1e-3
+
+
+def test_deterministic_with_seed():
+    sh = shapes.flat_square()
+    a, _ = parameterize(sh.V, sh.F, geodesics="landmarks", seed=5, refine="none", fill="none")
+    b, _ = parameterize(sh.V, sh.F, geodesics="landmarks", seed=5, refine="none", fill="none")
+    assert np.array_equal(a, b)
+
+
+def test_unreferenced_vertices_kept_with_warning(cylinder):
+    V = np.vstack([cylinder.V, [[9.0, 9.0, 9.0]]])
+    uv, rep = parameterize(V, cylinder.F, fill="none", refine="none")
+    assert uv.shape == (len(V), 2) and np.isfinite(uv).all()
+    assert rep["mesh"]["unreferenced_vertices"] == 1
+    assert any("unreferenced" in w for w in rep["warnings"])
+
+
+def test_report_fields(cylinder):
+    _, rep = parameterize(cylinder.V, cylinder.F, fill="none", refine="none")
+    for key in ("parameters", "timings_s", "mesh", "metrics", "method", "warnings", "peak_rss_mb"):
+        assert key in rep
+    for key in ("flips", "boundary_crossings", "iso_mean", "iso_p95", "conformal_mean", "area_mean",
+                "stress_rel_rms"):
+        assert key in rep["metrics"]
+    for key in ("vertices", "faces", "boundary_loops", "holes"):
+        assert key in rep["mesh"]
+    assert {"validate", "operators", "factorize", "geodesics", "mds", "metrics"} <= set(rep["timings_s"])
+    assert 0 < rep["metrics"]["stress_rel_rms"] < 0.1
+
+
+def test_bad_options_rejected(cylinder):
+    with pytest.raises(HeatparamError, match="geodesics"):
+        parameterize(cylinder.V, cylinder.F, geodesics="bogus")
+    with pytest.raises(HeatparamError, match="landmarks"):
+        parameterize(cylinder.V, cylinder.F, landmarks=2)
+    with pytest.raises(TypeError):
+        Options(bogus=1)
