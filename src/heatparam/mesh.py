@@ -111,27 +111,46 @@ def validate_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
             " — remove degenerate faces first"
         )
 
-    # Edges: non-manifold (>2 faces) and orientation (a directed edge used twice).
-    he = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    und = np.sort(he, axis=1)
-    _, inv_u, cnt_u = np.unique(und, axis=0, return_inverse=True, return_counts=True)
+    # Edges: non-manifold (>2 faces) and orientation (a directed edge used twice), on int64 edge keys.
+    he = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])  # half-edge h belongs to face h % m
+    lo, hi = he.min(axis=1), he.max(axis=1)
+    ukey = lo * n + hi
+    order = np.argsort(ukey, kind="stable")
+    sk = ukey[order]
+    starts = np.flatnonzero(np.r_[True, sk[1:] != sk[:-1]])
+    cnt_u = np.diff(np.r_[starts, len(sk)])
     if (cnt_u > 2).any():
         raise MeshError(
             f"{int((cnt_u > 2).sum())} non-manifold edges (shared by more than two faces)"
             " — repair the mesh (split non-manifold edges, remove duplicate faces) first"
         )
-    _, cnt_d = np.unique(he, axis=0, return_counts=True)
-    if (cnt_d > 1).any():
+    dkey = np.sort(he[:, 0] * n + he[:, 1])
+    same_way = int((dkey[1:] == dkey[:-1]).sum())
+    if same_way:
         raise MeshError(
-            f"{int((cnt_d > 1).sum())} edges run the same way in both of their faces: the faces are inconsistently"
+            f"{same_way} edges run the same way in both of their faces: the faces are inconsistently"
             " oriented (or the surface is non-orientable) — reorient the faces first"
         )
     referenced = np.zeros(n, dtype=bool)
     referenced[F.ravel()] = True
-    manifold_v = np.ones(n, dtype=bool)
-    vm = np.asarray(igl.is_vertex_manifold(F), dtype=bool)  # sized max(F)+1
-    manifold_v[: len(vm)] = vm
-    nonman_v = ~manifold_v & referenced
+    # Vertex manifoldness: the face corners at a vertex must form one fan. Corners (face, vertex) of two
+    # faces sharing an edge are linked at both ends of the edge; each vertex must own one linked group.
+    pair = starts[cnt_u == 2]
+    h1, h2 = order[pair], order[pair + 1]  # the two half-edges of each interior edge (opposite directions)
+    f1, f2 = h1 % m, h2 % m
+    a, b = he[h1, 0], he[h1, 1]
+    ends = []
+    for v in (a, b):
+        s1 = np.argmax(F[f1] == v[:, None], axis=1)
+        s2 = np.argmax(F[f2] == v[:, None], axis=1)
+        ends.append((3 * f1 + s1, 3 * f2 + s2))
+    r = np.concatenate([ends[0][0], ends[1][0]])
+    c = np.concatenate([ends[0][1], ends[1][1]])
+    graph = sp.csr_matrix((np.ones(len(r)), (r, c)), shape=(3 * m, 3 * m))
+    _, comp = connected_components(graph, directed=False)
+    fans = np.unique(F.ravel() * (3 * m) + comp)  # distinct (vertex, corner group) pairs
+    fans_per_vertex = np.bincount(fans // (3 * m), minlength=n)
+    nonman_v = fans_per_vertex > 1
     if nonman_v.any():
         raise MeshError(
             f"{int(nonman_v.sum())} non-manifold vertices (faces meeting at a single vertex, first: vertex "
@@ -151,7 +170,7 @@ def validate_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
     if n_boundary_edges == 0:
         raise MeshError("closed mesh — cut it open first (it has no boundary, so it cannot be flattened)")
     loops = boundary_loops(V, F)
-    n_edges = len(cnt_u)
+    n_edges = len(starts)
     chi = int(referenced.sum()) - n_edges + m
     genus2 = 2 - len(loops) - chi
     if genus2 > 0:

@@ -1,0 +1,57 @@
+"""Shared helpers for the benchmarks (not part of the library): mesh generation and isolated runs.
+
+Every measured run happens in a fresh subprocess so that its peak RSS is its own.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "meshes"
+
+
+def machine() -> str:
+    import psutil
+
+    return (f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+            f"{psutil.virtual_memory().total / 2**30:.0f} GiB, Python {platform.python_version()}")
+
+
+def upsampled_camelhead(target: int) -> tuple[np.ndarray, np.ndarray]:
+    """camelhead.off, midpoint-subdivided (igl.upsample) until it has about ``target`` vertices."""
+    import igl
+
+    from heatparam.io import load_mesh
+
+    V, F = load_mesh(SHARED / "camelhead.off")
+    while len(V) * 4 <= target * 1.5:
+        V, F = igl.upsample(V, F)
+    return V, F
+
+
+def run_isolated(code: str, payload: dict) -> dict:
+    """Run ``code`` in a fresh Python; it reads ``payload`` from sys.argv[1] (JSON) and prints one JSON line."""
+    with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as fh:
+        json.dump(payload, fh)
+    try:
+        r = subprocess.run([sys.executable, "-c", code, fh.name], capture_output=True, text=True)
+    finally:
+        os.unlink(fh.name)
+    if r.returncode != 0:
+        return {"error": (r.stderr.strip().splitlines() or ["failed"])[-1]}
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+PEAK_RSS = """
+import resource, sys
+def peak_mb():
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+"""
