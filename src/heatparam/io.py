@@ -122,10 +122,11 @@ def save_uv_obj(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.nd
     with atomic_write(path) as fh:
         if header:
             fh.write("".join(f"# {line}\n" for line in header.splitlines()))
-        np.savetxt(fh, V, fmt="v %.17g %.17g %.17g")
-        np.savetxt(fh, uv, fmt="vt %.17g %.17g")
-        f1 = F + 1
-        np.savetxt(fh, np.repeat(f1, 2, axis=1), fmt="f %d/%d %d/%d %d/%d")
+        # repr() of a float is the shortest text that reads back to the same float: exact round trip
+        fh.write(("v %r %r %r\n" * len(V)) % tuple(np.asarray(V, dtype=np.float64).ravel().tolist()))
+        fh.write(("vt %r %r\n" * len(uv)) % tuple(np.asarray(uv, dtype=np.float64).ravel().tolist()))
+        f1 = (np.asarray(F, dtype=np.int64) + 1).repeat(2, axis=1)
+        fh.write(("f %d/%d %d/%d %d/%d\n" * len(F)) % tuple(f1.ravel().tolist()))
 
 
 def load_uv_obj(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
