@@ -13,7 +13,7 @@ from pathlib import Path
 
 from heatparam import __version__
 from heatparam.errors import HeatparamError
-from heatparam.pipeline import FILL_MODES, GEODESIC_MODES, Options
+from heatparam.pipeline import FILL_MODES, GEODESIC_MODES, REFINE_MODES, Options
 
 EXIT_BAD_INPUT = 2
 
@@ -57,12 +57,16 @@ def build_parser() -> argparse.ArgumentParser:
     u.add_argument("input", help="mesh file (.obj .off .ply .stl .glb)")
     u.add_argument("-o", "--output", required=True, help="output OBJ (v in input order, one vt per vertex)")
     u.add_argument("--fill", choices=FILL_MODES, default=d.fill,
-                   help="Poisson surface fill M* for holes/concave borders (default: %(default)s)")
+                   help="fill surface M* for holes/concave borders: auto decides from the mesh (and uses the "
+                        "biharmonic fill), poisson = the paper's screened Poisson surface (default: %(default)s)")
     u.add_argument("--geodesics", choices=GEODESIC_MODES, default=d.geodesics,
                    help=f"all-pairs (paper), landmarks (O(n·k)), or auto: all-pairs up to "
                         f"{d.all_pairs_max} vertices (default: %(default)s)")
     u.add_argument("--landmarks", type=int, default=d.landmarks, metavar="K",
                    help="landmark count for the landmark path (default: automatic)")
+    u.add_argument("--refine", choices=REFINE_MODES, default=d.refine,
+                   help="sd = flip-free symmetric Dirichlet polish at true scale with overlap checks; none = the "
+                        "paper's raw MDS map (default: %(default)s)")
     u.add_argument("--seed", type=int, default=d.seed, help="random seed (default: %(default)s)")
     u.add_argument("--report", metavar="R.json", help="write a JSON report (parameters, timings, metrics)")
     u.add_argument("--preview", metavar="P.png", help="write a PNG: UV layout coloured by distortion + 3D view")
@@ -111,7 +115,8 @@ def cmd_unwrap(args: argparse.Namespace) -> int:
     prev = _check_output(args.preview, (args.input, args.output), ".png") if args.preview else None
     V, F = io.load_mesh(args.input)
     opts = Options(fill=args.fill, geodesics=args.geodesics, landmarks=args.landmarks, time_step=args.time_step,
-                   t_coef=args.t_coef, solver=args.solver, seed=args.seed, progress=not args.quiet)
+                   t_coef=args.t_coef, solver=args.solver, seed=args.seed, refine=args.refine,
+                   progress=not args.quiet)
     uv, report = parameterize(V, F, opts)
     report["input"] = str(args.input)
     _write_results(V, F, uv, report, out, rep, prev, quiet=args.quiet)

@@ -46,16 +46,25 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     suffix = p.suffix.lower()
     if suffix not in MESH_SUFFIXES:
         raise HeatparamError(f"cannot read {p}: unsupported format {suffix!r} (use one of {', '.join(MESH_SUFFIXES)})")
-    try:
-        if suffix in (".glb", ".gltf"):
-            V, F = _load_trimesh(p)
-        else:
-            V, F = _load_meshio(p)
-    except HeatparamError:
-        raise
-    except Exception as exc:  # any parser failure is a bad file, reported in one line
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise HeatparamError(f"cannot read {p}: {msg} — is it a valid {suffix[1:].upper()} file?") from None
+    # meshio keeps OBJ vertices exactly as written; trimesh (process=False, maintain_order=True) reads OFF/PLY
+    # polygons (meshio's OFF reader takes triangles only) and glTF scenes. The other library is the fallback.
+    loaders = [_load_meshio, _load_trimesh] if suffix == ".obj" else [_load_trimesh, _load_meshio]
+    if suffix in (".glb", ".gltf"):
+        loaders = [_load_trimesh]
+    first_error = None
+    for load in loaders:
+        try:
+            V, F = load(p)
+            break
+        except HeatparamError as exc:
+            first_error = first_error or str(exc)
+        except Exception as exc:  # any parser failure is a bad file, reported in one line
+            msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            first_error = first_error or f"cannot read {p}: {msg} — is it a valid {suffix[1:].upper()} file?"
+    else:
+        raise HeatparamError(first_error)
+    if suffix == ".stl":
+        V, F = _merge_stl(V, F)
     if len(V) == 0 or len(F) == 0:
         raise HeatparamError(f"cannot read {p}: the file holds no triangles")
     return V, F
@@ -85,16 +94,28 @@ def _load_meshio(p: Path) -> tuple[np.ndarray, np.ndarray]:
 def _load_trimesh(p: Path) -> tuple[np.ndarray, np.ndarray]:
     import trimesh
 
-    scene = trimesh.load(p, process=False, force="scene")
-    geoms = list(scene.dump()) if hasattr(scene, "dump") else [scene]
+    quiet = contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO())
+    with warnings.catch_warnings(), quiet[0], quiet[1]:
+        warnings.simplefilter("ignore")
+        scene = trimesh.load(p, process=False, maintain_order=True, force="scene")
+    geoms = [g for g in scene.dump() if hasattr(g, "faces")]
     if not geoms:
-        raise HeatparamError(f"cannot read {p}: the file holds no meshes")
+        raise HeatparamError(f"cannot read {p}: the file holds no triangles")
     Vs, Fs, off = [], [], 0
     for g in geoms:
         Vs.append(np.asarray(g.vertices, dtype=np.float64))
         Fs.append(np.asarray(g.faces, dtype=np.int64) + off)
         off += len(g.vertices)
     return np.concatenate(Vs), np.concatenate(Fs)
+
+
+def _merge_stl(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """STL stores every triangle with its own corners: merge identical positions (first appearance order)."""
+    _, first, inverse = np.unique(V, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)  # unique rows in order of first appearance
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return V[np.sort(first)], rank[inverse.ravel()][F]
 
 
 @contextlib.contextmanager

@@ -107,6 +107,23 @@ def divergence_operator(G: sp.csr_matrix, areas: np.ndarray) -> sp.csr_matrix:
     return (-(G.T @ sp.diags(np.concatenate([areas, areas])))).tocsr()
 
 
+def _restore_lengths(F0: np.ndarray, l0: np.ndarray, F1: np.ndarray, l1: np.ndarray) -> np.ndarray:
+    """Lengths for triangulation F1: the exact length l0 for every edge that F0 also has, else l1 (flipped)."""
+    n = int(max(F0.max(), F1.max())) + 1
+
+    def keys(F: np.ndarray) -> np.ndarray:
+        a, b = np.roll(F, -1, axis=1), np.roll(F, -2, axis=1)  # the edge opposite each corner
+        return np.minimum(a, b) * n + np.maximum(a, b)
+
+    k0, k1 = keys(F0).ravel(), keys(F1).ravel()
+    order = np.argsort(k0)
+    pos = np.clip(np.searchsorted(k0[order], k1), 0, len(k0) - 1)
+    hit = k0[order][pos] == k1
+    out = l1.ravel().copy()
+    out[hit] = l0.ravel()[order][pos[hit]]
+    return out.reshape(l1.shape)
+
+
 @dataclass
 class Operators:
     """FEM operators of one mesh, built once (precompute) and shared by the heat and Poisson solves."""
@@ -139,7 +156,7 @@ def build_operators(V: np.ndarray, F: np.ndarray, mass: str = "lumped", delaunay
         intrinsically until every cotangent weight is non-negative. On irregular meshes this is what makes the
         heat method accurate (camelhead.off, t = h²: mean geodesic error 2.2% → 1.2%); on good meshes it
         changes nothing.
-    delta : mollification slack, relative to the mean edge length (edge lengths are rounded to 2^-24 of it).
+    delta : mollification slack, relative to the mean edge length.
     """
     raw = edge_lengths(V, F)
     h = float(raw.mean())
@@ -147,10 +164,15 @@ def build_operators(V: np.ndarray, F: np.ndarray, mass: str = "lumped", delaunay
     # mean edge, snapped to 2^-24: a mesh scaled by s then gets the very same triangulation (exact Delaunay
     # ties on regular grids would otherwise be broken by rounding), so the map is exactly scale-invariant.
     unit = np.round(raw / h * 2.0**24) / 2.0**24
-    unit, eps = mollify(unit, delta)
+    unit, eps_unit = mollify(unit, delta)
+    eps = eps_unit * h
+    exact = raw + eps if eps > 0 else raw
     if delaunay:
-        unit, F = igl.intrinsic_delaunay_triangulation(unit, F)[:2]
-    lengths, eps = unit * h, eps * h
+        unit, F_idt = igl.intrinsic_delaunay_triangulation(unit, F)[:2]
+        lengths = _restore_lengths(F, exact, F_idt, unit * h)
+        F = F_idt
+    else:
+        lengths = exact
     L = cotan_laplacian(lengths, F)
     B = mass_matrix(lengths, F, mass)
     G = gradient_operator(lengths, F, len(V))

@@ -21,16 +21,19 @@ from heatparam.operators import MASS_KINDS, build_operators
 from heatparam.progress import Progress
 from heatparam.solvers import BACKENDS
 
-FILL_MODES = ("auto", "poisson", "none")
+FILL_MODES = ("auto", "poisson", "biharmonic", "none")
 GEODESIC_MODES = ("auto", "all-pairs", "landmarks")
-REFINE_MODES = ("none",)
+REFINE_MODES = ("none", "sd")
 
 
 @dataclass
 class Options:
     """Every knob of the pipeline, with its default written once (the CLI reuses these).
 
-    fill : ``auto`` decides from the mesh whether a Poisson fill M* is needed (§2.5); ``poisson``; ``none``.
+    fill : ``auto`` decides from the mesh whether a fill surface M* is needed (holes, concave border) and then
+        uses the biharmonic fill; ``poisson`` = the paper's screened Poisson surface (§2.5, Eq. 15-16);
+        ``biharmonic`` = M plus its holes and border bays triangulated and lifted by a biharmonic extension;
+        ``none``. See docs/fill.md for the measurements behind the choice.
     geodesics : ``all-pairs`` (the paper: n×n distances, classical MDS), ``landmarks`` (k farthest-point
         sources, landmark MDS, O(n·k) memory), or ``auto`` (all-pairs up to ``all_pairs_max`` vertices).
     landmarks : k for the landmark path (0 = automatic: ``default_landmarks(n)``).
@@ -42,7 +45,10 @@ class Options:
     all_pairs_max : largest vertex count for which ``auto`` takes the all-pairs path.
     stress_sources : number of sources for the sampled Eq. 1 stress in the report.
     fill_depth : Poisson reconstruction depth for the fill (0 = automatic from the mesh size).
-    refine : post-MDS refinement (``none`` returns the paper's raw MDS map).
+    refine : post-MDS refinement: ``sd`` (untangle flips, then flip-free symmetric Dirichlet polish at true scale
+        with overlap checks, see docs/refine.md) or ``none`` (the paper's raw MDS map).
+    refine_iters : iteration cap of the symmetric Dirichlet polish.
+    refine_tol : the polish stops when an iteration lowers the energy by less than this fraction.
     progress : show stage messages and progress bars on stderr.
     """
 
@@ -57,7 +63,9 @@ class Options:
     all_pairs_max: int = 3000
     stress_sources: int = 32
     fill_depth: int = 0
-    refine: str = "none"
+    refine: str = "sd"
+    refine_iters: int = 200
+    refine_tol: float = 1e-9
     progress: bool = False
 
     def validate(self) -> None:
@@ -127,11 +135,20 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
 
     fill_used, fill_reason = _decide_fill(opts, Vc, Fc, info)
     fill_report: dict = {"used": fill_used, "reason": fill_reason}
+    M = None
     if fill_used:
         from heatparam import fill
 
-        with prog.stage("fill"):
-            M = fill.poisson_fill(Vc, Fc, info, seed=opts.seed, depth=opts.fill_depth)
+        method = "poisson" if opts.fill == "poisson" else "biharmonic"  # auto: the biharmonic fill (docs/fill.md)
+        try:
+            with prog.stage("fill"):
+                M = fill.fill_surface(Vc, Fc, info, method=method, seed=opts.seed, depth=opts.fill_depth)
+        except HeatparamError as exc:
+            if opts.fill != "auto":
+                raise
+            fill_report.update(used=False, failed=str(exc))
+            warnings.append(f"the fill surface failed ({exc}); geodesics computed on the mesh itself")
+    if M is not None:
         fill_report.update(M.report)
         warnings += M.warnings
         layout = _geodesic_layout(M.V, M.F, opts, prog, points=(M.face, M.bary))
@@ -181,8 +198,8 @@ def _decide_fill(opts: Options, V: np.ndarray, F: np.ndarray, info: MeshInfo) ->
     """Whether to compute on a Poisson fill M* (§2.5), and why."""
     if opts.fill == "none":
         return False, "disabled (--fill none)"
-    if opts.fill == "poisson":
-        return True, "requested (--fill poisson)"
+    if opts.fill in ("poisson", "biharmonic"):
+        return True, f"requested (--fill {opts.fill})"
     from heatparam import fill
 
     return fill.needs_fill(V, F, info)

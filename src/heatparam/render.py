@@ -90,3 +90,79 @@ def save_preview(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.n
     with atomic_write(path, "wb") as fh:
         fig.savefig(fh, format="png")
     plt.close(fig)
+
+
+def _principal_frame(V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centre (3,) and rows of the principal axes (3,3) of V: view along the thinnest axis (the last row)."""
+    c = V.mean(axis=0)
+    _, _, Wt = np.linalg.svd(V - c, full_matrices=False)
+    return c, Wt
+
+
+def draw_surface_3d(ax, V: np.ndarray, F: np.ndarray, color=(0.75, 0.75, 0.8), frame=None, edges: bool = False,
+                    title: str = "") -> None:
+    """Shaded orthographic view of (V, F) in ``frame`` = (centre, axes) (default: V's principal frame)."""
+    from matplotlib.collections import PolyCollection
+
+    c, Wt = frame if frame is not None else _principal_frame(V)
+    P = (V - c) @ Wt.T
+    n = np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]])
+    n /= np.linalg.norm(n, axis=1, keepdims=True) + 1e-300
+    shade = 0.35 + 0.65 * np.abs(n[:, 2])
+    colors = np.clip(np.asarray(color, dtype=float)[None, :] * shade[:, None], 0, 1)
+    order = np.argsort(P[F, 2].mean(axis=1))
+    ax.add_collection(PolyCollection(P[F[order]][:, :, :2], facecolors=colors[order],
+                                     edgecolors=(0, 0, 0, 0.25) if edges else "none",
+                                     linewidths=0.2 if edges else 0.0, antialiaseds=edges))
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.set_axis_off()
+    if title:
+        ax.set_title(title, fontsize=10)
+
+
+def save_fill_figure(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, Vs: np.ndarray, Fs: np.ndarray,
+                     title: str = "") -> None:
+    """Paper Figure 7: (a) the mesh M, (b) the fill surface M* (grey) with M drawn over it (blue), one view."""
+    from heatparam.io import atomic_write
+
+    frame = _principal_frame(V)
+    plt, fig, axes = _figure(2)
+    draw_surface_3d(axes[0], V, F, color=(0.35, 0.5, 0.85), frame=frame, title=f"{title} — (a) mesh M")
+    draw_surface_3d(axes[1], Vs, Fs, color=(0.8, 0.8, 0.8), frame=frame, edges=len(Fs) < 10_000)
+    c, Wt = frame
+    P = (V - c) @ Wt.T
+    from matplotlib.collections import PolyCollection
+
+    axes[1].add_collection(PolyCollection(P[F][:, :, :2], facecolors=(0.35, 0.5, 0.85, 0.55), edgecolors="none"))
+    axes[1].set_title(f"(b) fill surface M* ({len(Vs)} vertices) with M over it", fontsize=10)
+    for ax in axes:
+        ax.autoscale_view()
+    fig.tight_layout()
+    with atomic_write(path, "wb") as fh:
+        fig.savefig(fh, format="png", dpi=64)
+    plt.close(fig)
+
+
+def save_fill_comparison(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv_without: np.ndarray,
+                         uv_with: np.ndarray, labels: tuple[str, str] = ("without fill", "with fill"),
+                         title: str = "") -> None:
+    """Paper Figures 10/12: checkerboard on M and the UV layout, without (top) and with (bottom) the fill."""
+    import matplotlib
+
+    from heatparam import metrics
+    from heatparam.io import atomic_write
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 2, figsize=(11, 10), dpi=80)
+    for row, (uv, lab) in enumerate(zip((uv_without, uv_with), labels, strict=True)):
+        pf = metrics.per_face_distortion(V, F, uv)
+        nflip = int(pf.flipped.sum())
+        draw_checker_3d(axes[row, 0], V, F, uv, title=f"{title} {lab}: checkerboard on M")
+        draw_layout(axes[row, 1], F, uv, pf.iso, pf.flipped, title=f"{lab}: UV layout, {nflip} flipped")
+    fig.tight_layout()
+    with atomic_write(path, "wb") as fh:
+        fig.savefig(fh, format="png")
+    plt.close(fig)

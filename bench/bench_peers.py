@@ -1,0 +1,121 @@
+"""heatparam vs libigl peers (LSCM, ARAP, SLIM) on the disk-like test meshes: a markdown table on stdout.
+
+Usage: ``python bench/bench_peers.py [name ...]`` (names of /work/shared/meshes files or generated shapes).
+Columns: flips, boundary crossings, iso mean/p95, conformal mean, area mean (``metrics.summary``; these are
+scale-normalized), true-scale layout error (``shapes.layout_error``, only where ``uv_true`` is known; maps that
+are not at true scale are first scaled by ``uv_scale`` and marked ``*``), seconds (wall).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import igl
+import numpy as np
+
+from heatparam import io, metrics, pipeline, shapes
+
+MESH_DIR = Path("/work/shared/meshes")
+MESHES = ["camelhead.off", "halftunnel.off", "beetle.off", "woody.obj", "bump-domain.obj"]
+SHAPES = ["cylinder_patch", "cylinder_with_holes", "cone_s_strip", "curved_cap_with_holes"]
+
+
+def load(name: str):
+    if hasattr(shapes, name):
+        s = getattr(shapes, name)()
+        return s.V, s.F, s.uv_true
+    try:
+        V, F = io.load_mesh(MESH_DIR / name)
+    except Exception:  # heatparam.io reads triangles only (halftunnel.off holds quads): libigl splits them
+        V, F = igl.read_triangle_mesh(str(MESH_DIR / name))
+    return np.asarray(V, np.float64), np.asarray(F, np.int64), None
+
+
+def _outer(F):
+    loops = metrics.boundary_loops(F)
+    return loops[int(np.argmax([len(lp) for lp in loops]))]
+
+
+def lscm(V, F):
+    b = _outer(F)
+    fixed = np.array([b[0], b[len(b) // 2]])
+    uv, _ = igl.lscm(V, F, fixed, np.array([[0.0, 0.0], [1.0, 0.0]]))
+    return uv
+
+
+def tutte(V, F):
+    b = _outer(F)
+    bc = igl.map_vertices_to_circle(V, b.astype(np.int32))
+    return igl.harmonic(V, F, b, bc, 1)
+
+
+def arap(V, F, uv0, iters=100):
+    data = igl.ARAPData()
+    data.max_iter = iters
+    igl.arap_precomputation(V, F, 2, np.zeros(0, np.int32), data)
+    return igl.arap_solve(np.zeros((0, 2)), data, uv0)
+
+
+def slim(V, F, uv0, iters=100):
+    data = igl.slim_precompute(V, F.astype(np.int32), uv0, igl.MappingEnergyType.SYMMETRIC_DIRICHLET,
+                               np.zeros(0, np.int32), np.zeros((0, 2)))
+    return np.asarray(igl.slim_solve(data, iters))[:, :2]
+
+
+def row(method, V, F, uv, seconds, uv_true, true_scale):
+    s = metrics.summary(V, F, uv)
+    if uv_true is not None:
+        mark = "" if true_scale else "*"
+        le = f"{shapes.layout_error(uv * (1.0 if true_scale else s['uv_scale']), uv_true):.2e}{mark}"
+    else:
+        le = "–"
+    return (f"| {method} | {s['flips']} | {s['boundary_crossings']} | {s['iso_mean']:.4f} | {s['iso_p95']:.4f} | "
+            f"{s['conformal_mean']:.4f} | {s['area_mean']:.4f} | {le} | {seconds:.2f} |")
+
+
+def timed(fn, *a):
+    t = time.perf_counter()
+    out = fn(*a)
+    return out, time.perf_counter() - t
+
+
+def bench(name: str) -> list[str]:
+    V, F, uvt = load(name)
+    out = [f"\n### {name} ({len(V)} vertices, {len(F)} faces)\n",
+           "| method | flips | crossings | iso mean | iso p95 | conformal mean | area mean | layout err | s |",
+           "|---|---|---|---|---|---|---|---|---|"]
+    for label, kw in (("heatparam raw (refine none, fill none)", {"refine": "none", "fill": "none"}),
+                      ("heatparam filled (fill poisson, refine none)", {"refine": "none", "fill": "poisson"}),
+                      ("heatparam default", {})):
+        try:
+            (uv, rep), dt = timed(lambda kw=kw: pipeline.parameterize(V, F, **kw))
+            out.append(row(label, V, F, uv, dt, uvt, True))
+        except Exception as exc:  # the fill may not exist yet
+            out.append(f"| {label} | n/a ({type(exc).__name__}) |  |  |  |  |  |  |  |")
+    uv_l, t_l = timed(lscm, V, F)
+    out.append(row("libigl LSCM (2 fixed vertices)", V, F, uv_l, t_l, uvt, False))
+    uv_t, t_t = timed(tutte, V, F)
+    # ARAP/SLIM start from LSCM scaled to true area (they are true-scale energies).
+    s_l = metrics.summary(V, F, uv_l)["uv_scale"]
+    for start, uv0, t0 in (("Tutte", uv_t, t_t), ("LSCM", uv_l * s_l, t_l)):
+        uv, dt = timed(arap, V, F, uv0)
+        out.append(row(f"libigl ARAP 100 it from {start}", V, F, uv, dt + t0, uvt, True))
+        uv, dt = timed(slim, V, F, uv0)
+        out.append(row(f"libigl SLIM 100 it from {start}", V, F, uv, dt + t0, uvt, True))
+    return out
+
+
+def main(argv: list[str]) -> None:
+    names = argv or MESHES + SHAPES
+    print("# heatparam vs libigl peers")
+    print("`*` layout error after scaling by uv_scale (the map is not at true scale). "
+          "iso/conformal/area are scale-normalized (metrics.summary); means over non-flipped faces.")
+    for name in names:
+        for line in bench(name):
+            print(line, flush=True)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,76 @@
+import numpy as np
+import pytest
+import trimesh
+
+from heatparam import io, shapes
+from heatparam.errors import HeatparamError
+
+from conftest import shared_mesh
+
+
+@pytest.fixture(scope="module")
+def mesh():
+    sh = shapes.cylinder_patch(h=0.1)
+    return sh.V, sh.F
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".glb", ".stl", ".off"])
+def test_formats_keep_vertex_order(tmp_path, mesh, suffix):
+    V, F = mesh
+    p = tmp_path / f"m{suffix}"
+    trimesh.Trimesh(V, F, process=False).export(p)
+    V2, F2 = io.load_mesh(p)
+    tol = 1e-6 if suffix in (".ply", ".glb", ".stl") else 1e-9  # float32 / trimesh's OFF text precision
+    assert V2.shape == V.shape
+    if suffix == ".stl":  # STL has no shared vertices: corners are merged, numbered in order of appearance
+        assert np.abs(V2[F2] - V[F]).max() < tol
+    else:
+        assert np.abs(V2 - V).max() < tol and np.array_equal(F2, F)
+
+
+def test_obj_round_trip_exact(tmp_path, mesh):
+    V, F = mesh
+    uv = V[:, :2] * 1.5
+    p = tmp_path / "m.obj"
+    io.save_uv_obj(p, V, F, uv)
+    V2, F2 = io.load_mesh(p)
+    assert np.array_equal(V2, V) and np.array_equal(F2, F)  # bit-exact (repr round trip)
+    V3, F3, UV, FUV = io.load_uv_obj(p)
+    assert np.array_equal(UV, uv) and np.array_equal(FUV, F)
+
+
+def test_quads_and_polygons_triangulated(tmp_path):
+    p = tmp_path / "q.obj"
+    p.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 1 0\nf 1 2 3 4\nf 2 5 6 3\n")
+    V, F = io.load_mesh(p)
+    assert len(V) == 6 and F.shape == (4, 3)
+    off = tmp_path / "q.off"
+    off.write_text("OFF\n5 1 0\n0 0 0\n1 0 0\n1.5 1 0\n0.5 1.5 0\n-0.5 1 0\n5 0 1 2 3 4\n")
+    V, F = io.load_mesh(off)
+    assert len(V) == 5 and F.shape == (3, 3)
+
+
+def test_public_quad_off_loads():
+    V, F = io.load_mesh(shared_mesh("halftunnel.off"))  # its faces are quads
+    assert V.shape == (831, 3) and F.shape == (1568, 3)
+
+
+def test_atomic_write_keeps_old_file_on_failure(tmp_path):
+    p = tmp_path / "out.json"
+    p.write_text("old")
+    with pytest.raises(RuntimeError), io.atomic_write(p) as fh:
+        fh.write("half")
+        raise RuntimeError("boom")
+    assert p.read_text() == "old" and len(list(tmp_path.iterdir())) == 1
+
+
+def test_missing_folder_is_one_line_error(tmp_path):
+    with pytest.raises(HeatparamError, match="does not exist"):
+        io.save_json(tmp_path / "nope" / "r.json", {})
+
+
+def test_uv_obj_without_vt_rejected(tmp_path):
+    p = tmp_path / "novt.obj"
+    p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(HeatparamError, match="texture"):
+        io.load_uv_obj(p)
