@@ -117,19 +117,21 @@ def cmd_unwrap(args: argparse.Namespace) -> int:
     opts = Options(fill=args.fill, geodesics=args.geodesics, landmarks=args.landmarks, time_step=args.time_step,
                    t_coef=args.t_coef, solver=args.solver, seed=args.seed, refine=args.refine,
                    progress=not args.quiet)
-    uv, report = parameterize(V, F, opts)
+    result = parameterize(V, F, opts)
+    uv, report = result
     report["input"] = str(args.input)
-    _write_results(V, F, uv, report, out, rep, prev, quiet=args.quiet)
+    _write_results(V, F, uv, report, out, rep, prev, quiet=args.quiet, fill_surface=result.fill_surface)
     return 0
 
 
-def _write_results(V, F, uv, report, out: Path, rep: Path | None, prev: Path | None, quiet: bool) -> None:
+def _write_results(V, F, uv, report, out: Path, rep: Path | None, prev: Path | None, quiet: bool,
+                   fill_surface=None) -> None:
     from heatparam import io
 
     if prev is not None:
         from heatparam import render
 
-        render.save_preview(prev, V, F, uv, title=Path(report.get("input", out.stem)).name)
+        render.save_preview(prev, V, F, uv, title=Path(report.get("input", out.stem)).name, fill_surface=fill_surface)
     io.save_uv_obj(out, V, F, uv, header=f"heatparam {__version__}: vt = true-scale UV (model units)")
     if rep is not None:
         io.save_json(rep, report)
@@ -195,12 +197,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
         raise HeatparamError(f"{outdir} exists and is not a folder")
     outdir.mkdir(parents=True, exist_ok=True)
     shape = shapes.DEMO_SHAPE()
-    uv, report = parameterize(shape.V, shape.F, progress=not args.quiet)
+    result = parameterize(shape.V, shape.F, progress=not args.quiet)
+    uv, report = result
     report["input"] = f"generated:{shape.name}"
     if shape.uv_true is not None:
         report["metrics"]["layout_error_rel"] = shapes.layout_error(uv, shape.uv_true)
     _write_results(shape.V, shape.F, uv, report, outdir / "demo.obj", outdir / "demo-report.json",
-                   outdir / "demo-preview.png", quiet=args.quiet)
+                   outdir / "demo-preview.png", quiet=args.quiet, fill_surface=result.fill_surface)
     if not args.quiet:
         print(f"demo: {shape.name} ({len(shape.V)} vertices) → {outdir}/demo.obj, demo-report.json, "
               "demo-preview.png", file=sys.stderr)

@@ -98,12 +98,16 @@ def landmark_mds(DL: np.ndarray, landmarks: np.ndarray | None = None, dim: int =
     return (X - centre) * sign, (XL - centre) * sign
 
 
-def orient_layout(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Mirror the layout if most of its signed area is clockwise, so the faces keep the mesh's orientation."""
+def needs_mirror(uv: np.ndarray, F: np.ndarray) -> bool:
+    """Whether most of the layout's signed area is clockwise (MDS fixes coordinates only up to a reflection)."""
     a = uv[F[:, 1]] - uv[F[:, 0]]
     b = uv[F[:, 2]] - uv[F[:, 0]]
-    signed = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    if signed.sum() < 0:
+    return bool((a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum() < 0)
+
+
+def orient_layout(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Mirror the layout if most of its signed area is clockwise, so the faces keep the mesh's orientation."""
+    if needs_mirror(uv, F):
         uv = uv.copy()
         uv[:, 1] *= -1
     return uv

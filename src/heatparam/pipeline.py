@@ -97,11 +97,36 @@ def default_landmarks(n: int) -> int:
     return int(min(n, 200))
 
 
-class Result(NamedTuple):
-    """What :func:`parameterize` returns: ``uv`` (n,2) for the input vertices, and the JSON-able report."""
+class FillSurface(NamedTuple):
+    """The fill surface M* the geodesics were computed on, for pictures: M* (V, F), the MDS layout of its
+    vertices ``uv`` and of the input's vertices ``uv_points`` in the same frame (before refinement)."""
 
+    V: np.ndarray
+    F: np.ndarray
     uv: np.ndarray
-    report: dict
+    uv_points: np.ndarray
+    method: str
+
+
+class Result(tuple):
+    """What :func:`parameterize` returns; unpacks as ``uv, report``.
+
+    uv : (n,2) float64, uv[i] the image of input vertex i. report : the JSON-able report.
+    fill_surface : a :class:`FillSurface` when a fill was used (for ``--preview``), else None.
+    """
+
+    def __new__(cls, uv: np.ndarray, report: dict, fill_surface: FillSurface | None = None):
+        self = super().__new__(cls, (uv, report))
+        self.fill_surface = fill_surface
+        return self
+
+    @property
+    def uv(self) -> np.ndarray:
+        return self[0]
+
+    @property
+    def report(self) -> dict:
+        return self[1]
 
 
 def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, **kwargs) -> Result:
@@ -154,7 +179,12 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
         layout = _geodesic_layout(M.V, M.F, opts, prog, points=(M.face, M.bary))
     else:
         layout = _geodesic_layout(Vc, Fc, opts, prog)
+    mirror = mds.needs_mirror(layout.uv, Fc)
     uvc = mds.orient_layout(layout.uv, Fc)
+    surface = None
+    if M is not None:
+        flip = np.array([1.0, -1.0]) if mirror else np.ones(2)
+        surface = FillSurface(M.V, M.F, layout.uv_surface * flip, uvc.copy(), fill_report.get("method", ""))
     refine_report: dict = {"method": opts.refine}
     if opts.refine != "none":
         from heatparam import refine
@@ -191,7 +221,7 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
         "machine": {"python": platform.python_version(), "platform": platform.platform()},
         "warnings": warnings,
     }
-    return Result(uv, report)
+    return Result(uv, report, surface)
 
 
 def _decide_fill(opts: Options, V: np.ndarray, F: np.ndarray, info: MeshInfo) -> tuple[bool, str]:
@@ -207,6 +237,7 @@ def _decide_fill(opts: Options, V: np.ndarray, F: np.ndarray, info: MeshInfo) ->
 
 class Layout(NamedTuple):
     uv: np.ndarray  # (n,2) MDS layout of the points
+    uv_surface: np.ndarray | None  # (N,2) MDS layout of the geodesic surface's vertices (fill path only)
     D_points: np.ndarray  # (n_points, c) geodesic distances used for the stress sample
     stress_columns: np.ndarray  # (c,) point index of each column's source
     mode: str
@@ -240,16 +271,16 @@ def _geodesic_layout(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress
         solver = heat.HeatGeodesics(op, t, backend=opts.solver)
     rng = np.random.default_rng(opts.seed)
     if mode == "all-pairs" and points is None:
-        with prog.stage("geodesics"), prog.bar(n, "geodesics") as bar:
+        with prog.stage("geodesics"), prog.bar(n, "geodesics", "src") as bar:
             D = heat.all_pairs(solver, progress=bar.update)
         cols = np.sort(rng.choice(n, size=min(n, opts.stress_sources), replace=False))
         D_stress = D[:, cols].copy()
         with prog.stage("mds"):
             uv = mds.classical_mds(D, seed=opts.seed, overwrite=True)
         del D
-        return Layout(uv, D_stress, cols, mode, n, t, solver.backend, op.mollify_eps)
+        return Layout(uv, None, D_stress, cols, mode, n, t, solver.backend, op.mollify_eps)
     k = n if mode == "all-pairs" else (opts.landmarks or default_landmarks(n))
-    with prog.stage("geodesics"), prog.bar(k + 1, "landmark geodesics") as bar:
+    with prog.stage("geodesics"), prog.bar(k + 1, "landmark geodesics", "src") as bar:
         if k >= n:
             lm = np.arange(n)
             DL = solver.distances(lm, progress=bar.update)
@@ -259,14 +290,16 @@ def _geodesic_layout(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress
         with prog.stage("mds"):
             uv, _ = mds.landmark_mds(DL, lm)
         cols = np.arange(min(k, opts.stress_sources))
-        return Layout(uv, DL[:, cols], lm[cols], mode, k, t, solver.backend, op.mollify_eps)
+        return Layout(uv, None, DL[:, cols], lm[cols], mode, k, t, solver.backend, op.mollify_eps)
     face, bary = points
     with prog.stage("mds"):
         DP = np.einsum("pc,pck->pk", bary, DL[F[face]])  # landmark distances interpolated at the points
-        uv, _ = mds.landmark_mds(DP, Dkk=DL[lm])
+        both, _ = mds.landmark_mds(np.vstack([DP, DL]), Dkk=DL[lm])  # points and M*'s vertices, one frame
+        both -= both[: len(face)].mean(axis=0)
+        uv, uv_surface = both[: len(face)], both[len(face) :]
     # Stress sample: distances on the fill surface from a few of the points themselves (point sources).
     with prog.stage("geodesics"):
         cols = np.sort(rng.choice(len(face), size=min(len(face), opts.stress_sources), replace=False))
         Ds = solver.distances(heat.point_sources(F, face[cols], bary[cols], n))
         D_stress = np.einsum("pc,pck->pk", bary, Ds[F[face]])
-    return Layout(uv, D_stress, cols, mode, k, t, solver.backend, op.mollify_eps)
+    return Layout(uv, uv_surface, D_stress, cols, mode, k, t, solver.backend, op.mollify_eps)

@@ -17,8 +17,9 @@ def _figure(ncols: int):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, ncols, figsize=(6.4 * ncols, 6.4), dpi=110)
-    return plt, fig, np.atleast_1d(axes)
+    rows, cols = (2, 2) if ncols == 4 else (1, ncols)
+    fig, axes = plt.subplots(rows, cols, figsize=(6.4 * cols, 6.4 * rows), dpi=110 if rows == 1 else 80)
+    return plt, fig, np.atleast_1d(axes).ravel()
 
 
 def draw_layout(ax, F: np.ndarray, uv: np.ndarray, iso: np.ndarray, flipped: np.ndarray, vmax: float = 2.0,
@@ -57,6 +58,13 @@ def draw_checker_3d(ax, V: np.ndarray, F: np.ndarray, uv: np.ndarray, cells: int
 
     if len(F) > MAX_FACES_3D:
         F = F[np.linspace(0, len(F) - 1, MAX_FACES_3D).astype(np.int64)]
+    # Subdivide (3D and UV together) so the checker squares have smooth edges on coarse meshes.
+    levels = int(np.clip(np.floor(np.log(MAX_FACES_3D / 2 / max(len(F), 1)) / np.log(4)), 0, 2))
+    if levels:
+        import igl
+
+        P, F = igl.upsample(np.hstack([V, uv]), F, levels)
+        V, uv = P[:, :3], P[:, 3:]
     c = V.mean(axis=0)
     _, _, Wt = np.linalg.svd(V - c, full_matrices=False)
     P = (V - c) @ Wt.T  # principal frame: x, y in-plane, z = view direction
@@ -77,15 +85,36 @@ def draw_checker_3d(ax, V: np.ndarray, F: np.ndarray, uv: np.ndarray, cells: int
     ax.set_title(title or "3D mesh, checkerboard through the map", fontsize=10)
 
 
-def save_preview(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.ndarray, title: str = "") -> None:
-    """Write the two-panel preview PNG atomically."""
+def save_preview(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.ndarray, title: str = "",
+                 fill_surface=None) -> None:
+    """Write the preview PNG atomically: the UV layout coloured by isometric distortion beside the 3D mesh with
+    a checkerboard through the map (paper Figures 10-12). With ``fill_surface`` (a pipeline ``FillSurface``),
+    two more panels show M* with M over it (Figure 7) and M*'s MDS layout with M's trimmed layout (Figure 9)."""
     from heatparam import metrics
     from heatparam.io import atomic_write
 
     pf = metrics.per_face_distortion(V, F, uv)
-    plt, fig, axes = _figure(2)
+    plt, fig, axes = _figure(2 if fill_surface is None else 4)
     draw_layout(axes[0], F, uv, pf.iso, pf.flipped, title=f"{title} — UV layout (isometric distortion)")
     draw_checker_3d(axes[1], V, F, uv)
+    if fill_surface is not None:
+        from matplotlib.collections import PolyCollection
+
+        fs = fill_surface
+        frame = _principal_frame(V)
+        draw_surface_3d(axes[2], fs.V, fs.F, color=(0.8, 0.8, 0.8), frame=frame, edges=len(fs.F) < 10_000)
+        c, Wt = frame
+        P = (V - c) @ Wt.T
+        axes[2].add_collection(PolyCollection(P[F][:, :, :2], facecolors=(0.35, 0.5, 0.85, 0.55), edgecolors="none"))
+        axes[2].autoscale_view()
+        axes[2].set_title(f"fill surface M* ({fs.method}, {len(fs.V)} vertices) with M over it", fontsize=10)
+        ax = axes[3]
+        ax.add_collection(PolyCollection(fs.uv[fs.F], facecolors=(0.8, 0.8, 0.8), edgecolors=(0.6, 0.6, 0.6),
+                                         linewidths=0.1))
+        ax.add_collection(PolyCollection(fs.uv_points[F], facecolors=(0.35, 0.5, 0.85, 0.7), edgecolors="none"))
+        ax.set_aspect("equal")
+        ax.autoscale_view()
+        ax.set_title("MDS layout of M* (grey) and its trim to M (blue), before refinement", fontsize=10)
     fig.tight_layout()
     with atomic_write(path, "wb") as fh:
         fig.savefig(fh, format="png")
