@@ -45,8 +45,8 @@ class Options:
     all_pairs_max : largest vertex count for which ``auto`` takes the all-pairs path.
     stress_sources : number of sources for the sampled Eq. 1 stress in the report.
     fill_depth : Poisson reconstruction depth for the fill (0 = automatic from the mesh size).
-    refine : post-MDS refinement: ``sd`` (untangle flips, then flip-free symmetric Dirichlet polish at true scale
-        with overlap checks, see docs/refine.md) or ``none`` (the paper's raw MDS map).
+    refine : post-MDS refinement: ``sd`` (flip-free symmetric Dirichlet polish at true scale with overlap checks,
+        from the MDS layout, or from LSCM / Tutte where that has flips; docs/refine.md) or ``none`` (raw MDS map).
     refine_iters : iteration cap of the symmetric Dirichlet polish.
     refine_tol : the polish stops when an iteration lowers the energy by less than this fraction.
     progress : show stage messages and progress bars on stderr.
@@ -65,7 +65,7 @@ class Options:
     fill_depth: int = 0
     refine: str = "sd"
     refine_iters: int = 200
-    refine_tol: float = 1e-9
+    refine_tol: float = 1e-6
     progress: bool = False
 
     def validate(self) -> None:

@@ -7,14 +7,17 @@ stage turns the raw MDS layout into a bijective, near-isometric map at true scal
    its fans is a topological disk. Fan triangles are scaffold elements (Jiang et al. 2017): they must stay
    positively oriented, which keeps every hole from overlapping itself or the surface, and their (small) energy
    is measured against their own shape at the start of each iteration.
-2. **Untangle** (only when the start has flipped triangles): the regularized barrier energy of Garanzha et al.
-   2021, "Foldover-free maps in 50 lines of code", with a decreasing ε, minimized by L-BFGS.
-3. **Fallback start**: when untangling fails or leaves boundary crossings, a Tutte embedding of the disk
-   (outer loop on a circle of the surface's perimeter, uniform weights), bijective by Tutte's theorem.
-4. **Polish**: symmetric Dirichlet energy, no rescaling (its minimum is the isometry itself), minimized with the
-   SLIM proxy (Rabinovich et al. 2017: reweighted Laplacian, one sparse Cholesky solve per iteration) and a
-   line search that never lets a triangle's det J cross zero (Smith & Schaefer 2015: first positive root of
-   each face's quadratic) and rejects any step that makes the outer boundary cross itself.
+2. **Start.** The MDS layout when it has no flipped triangle (fans included) and no boundary crossing;
+   otherwise a free-boundary LSCM layout scaled to the 3D area if it is valid (no flip, fans included, no
+   crossing), else a Tutte embedding of the disk (outer loop on a circle of the surface's perimeter, uniform
+   weights), bijective by Tutte's theorem. (:func:`untangle`, Garanzha et al. 2021, is implemented but off: measured to
+   fail on our cases, see ``UNTANGLE_MAX_FRACTION``.)
+3. **Polish**: symmetric Dirichlet energy Σ A_f (|J|² + |J⁻¹|²), no rescaling (its minimum is the isometry
+   itself), minimized by projected Newton (per-face 4×4 Hessian in J projected to PSD, one sparse Cholesky
+   per iteration; the SLIM proxy of Rabinovich et al. 2017 is kept as ``method="slim"``), with a line search
+   that never lets a triangle's det J cross zero (Smith & Schaefer 2015: first positive root of each face's
+   quadratic) and rejects any step after which the outer boundary crosses itself. The start is bijective and
+   every accepted step keeps it so (crossings are checked at the step's end point, not continuously).
 
 ``refine(V, F, uv, opts)`` → (uv, report). Plain arrays in and out; ``report`` is JSON-able.
 """
@@ -35,7 +38,7 @@ from heatparam.solvers import Factor
 REFINE_MODES = ("none", "sd")
 # Untangle only when at most this fraction of the faces is flipped. 0: never — our L-BFGS implementation of
 # Garanzha et al. failed on every measured case (halftunnel 178 → 617 flips, cylinder_with_holes 3 → 959,
-# camelhead 9379 → 7291, 1-29 s), so a flipped start goes straight to the Tutte fallback. See docs/refine.md.
+# camelhead 9379 → 7291, 1-29 s), so a flipped start goes to the LSCM / Tutte starts. See docs/refine.md.
 UNTANGLE_MAX_FRACTION = 0.0
 FAN_WEIGHT = 1e-2  # scaffold (fan) face energy weight, relative to the mean surface face area
 
@@ -261,6 +264,24 @@ def tutte(V: np.ndarray, disk: Disk, backend: str = "auto") -> np.ndarray:
     return uv
 
 
+def conformal_start(V: np.ndarray, F: np.ndarray, disk: Disk, area: np.ndarray) -> np.ndarray:
+    """Free-boundary LSCM (``igl.lscm``, two outer-loop vertices pinned), scaled to the 3D area and centred."""
+    import igl
+
+    b = disk.outer
+    fixed = np.array([b[0], b[len(b) // 2]], dtype=np.int64)
+    dist = float(np.linalg.norm(V[fixed[0]] - V[fixed[1]]))
+    uv, _ = igl.lscm(V, F, fixed, np.array([[0.0, 0.0], [max(dist, 1e-12), 0.0]]))
+    uv = np.asarray(uv, dtype=np.float64)
+    a = uv[F[:, 1]] - uv[F[:, 0]]
+    c = uv[F[:, 2]] - uv[F[:, 0]]
+    signed = 0.5 * (a[:, 0] * c[:, 1] - a[:, 1] * c[:, 0]).sum()
+    if signed < 0:
+        uv[:, 1] *= -1
+    uv *= np.sqrt(area.sum() / max(abs(signed), 1e-300))
+    return uv - uv.mean(axis=0)
+
+
 # ----------------------------------------------------------------------------------------------------------
 # symmetric Dirichlet polish with the SLIM proxy
 # ----------------------------------------------------------------------------------------------------------
@@ -370,7 +391,7 @@ def polish(uv: np.ndarray, disk: Disk, g_surf: np.ndarray, area: np.ndarray, *, 
             for a in range(2):
                 Bm[:, 2 * a : 2 * a + 2, a, :] = g.transpose(0, 2, 1)
             Bm = Bm.reshape(len(F), 4, 6)
-            blocks = np.einsum("mpi,mpq,mqj->mij", Bm, HJ, Bm)
+            blocks = np.matmul(np.matmul(Bm.transpose(0, 2, 1), HJ), Bm)
             H = pat.matrix(blocks)
             gr = _scatter(gJ, F, g, N)
             rhs = -np.concatenate([gr[:, 0], gr[:, 1]])
@@ -439,7 +460,7 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=Non
     t0 = time.perf_counter()
     backend = getattr(opts, "solver", "auto")
     max_iters = int(getattr(opts, "refine_iters", 200))
-    tol = float(getattr(opts, "refine_tol", 1e-9))
+    tol = float(getattr(opts, "refine_tol", 1e-6))
     n = len(V)
     disk = build_disk(V, F)
     g_surf, area = surface_gradients(V, F)
@@ -464,8 +485,13 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=Non
     cross = _outer_crossings(x, disk) if (d > 0).all() else -1
     report["start"]["crossings_before_polish"] = cross
     if not (d > 0).all() or cross != 0:
-        x = tutte(V, disk, backend)
-        start = "tutte"
+        xl = _fan_centres(conformal_start(V, F, disk, area), disk)
+        dl = _det(jacobians(xl, disk.F, g_all))
+        report["start"]["lscm_flips"] = int((dl <= 0).sum())
+        if (dl > 0).all() and _outer_crossings(xl, disk) == 0:
+            x, start = xl, "lscm"
+        else:
+            x, start = tutte(V, disk, backend), "tutte"
     report["start"]["layout"] = start
     bar = progress.bar(max_iters, "polish") if progress is not None else None
     try:
@@ -473,6 +499,7 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=Non
     finally:
         if bar is not None:
             bar.close()
+    pinfo["method"] = "projected-newton"
     report["polish"] = pinfo
     uvn = x[:n]
     report["flips"] = int((_det(jacobians(uvn, F, g_surf)) <= 0).sum())
