@@ -15,7 +15,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from common import PEAK_RSS, machine, run_isolated, upsampled_camelhead
+from common import PEAK_RSS, SHARED, machine, run_isolated, upsampled_camelhead
 
 HEATPARAM = PEAK_RSS + """
 import json, time
@@ -77,10 +77,12 @@ out = {}
 t0 = time.perf_counter()
 op = build_operators(V, F)
 solver = HeatGeodesics(op, time_step(op))
+pre = time.perf_counter() - t0
+solver.distances(src[:8])  # warm-up: threads, first touch of the scratch buffers
 t1 = time.perf_counter()
 solver.distances(src)
 t2 = time.perf_counter()
-out["heatparam"] = {"precompute": t1 - t0, "per_source_ms": (t2 - t1) / len(src) * 1e3}
+out["heatparam"] = {"precompute": pre, "per_source_ms": (t2 - t1) / len(src) * 1e3}
 import potpourri3d as pp3d
 t0 = time.perf_counter()
 s = pp3d.MeshHeatMethodDistanceSolver(V, F)
@@ -97,6 +99,7 @@ for i in src[:32]:
     igl.heat_geodesics_solve(data, np.array([i]))
 t2 = time.perf_counter()
 out["libigl"] = {"precompute": t1 - t0, "per_source_ms": (t2 - t1) / 32 * 1e3}
+out["n"] = n
 print(json.dumps(out))
 """
 
@@ -104,8 +107,10 @@ print(json.dumps(out))
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", type=int, nargs="+", default=[10000, 50000, 200000])
-    ap.add_argument("--slim-max", type=int, default=60000, help="largest mesh on which SLIM is run")
+    ap.add_argument("--slim-max", type=int, default=20000, help="largest mesh on which SLIM is run")
     ap.add_argument("--slim-iters", type=int, default=100)
+    ap.add_argument("--geodesics-mesh", default=str(SHARED / "beetle.off"),
+                    help="mesh for the per-source geodesics comparison (~25k vertices; default beetle.off, 19.9k)")
     args = ap.parse_args()
     from heatparam.io import save_uv_obj
 
@@ -113,17 +118,17 @@ def main() -> None:
     print("| mesh | n | tool | seconds | ratio to LSCM | peak RSS MB | flips | crossings | iso mean | notes |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
-        geo_mesh = None
         for size in args.sizes:
             V, F = upsampled_camelhead(size)
             path = Path(tmp) / f"camel{len(V)}.obj"
             save_uv_obj(path, V, F, np.zeros((len(V), 2)))
-            if geo_mesh is None or abs(len(V) - 25000) < abs(geo_mesh[1] - 25000):
-                geo_mesh = (path, len(V))
             lscm = run_isolated(PEER, {"mesh": str(path), "peer": "lscm"})
             rows = [("libigl LSCM", lscm, "")]
             hp = run_isolated(HEATPARAM, {"mesh": str(path), "out": str(Path(tmp) / "o.obj"), "options": {}})
-            rows.insert(0, ("heatparam default (end to end, I/O incl.)", hp, ""))
+            raw = run_isolated(HEATPARAM, {"mesh": str(path), "out": str(Path(tmp) / "o.obj"),
+                                           "options": {"refine": "none"}})
+            rows[:0] = [("heatparam default (end to end, I/O incl.)", hp, ""),
+                        ("heatparam --refine none (end to end, I/O incl.)", raw, "")]
             if len(V) <= args.slim_max:
                 rows.append((f"libigl SLIM ({args.slim_iters} it, Tutte start)",
                              run_isolated(PEER, {"mesh": str(path), "peer": "slim", "iters": args.slim_iters}), ""))
@@ -140,11 +145,12 @@ def main() -> None:
                             + ", ".join(f"{k} {v:.2f}" for k, v in r["stages"].items()))
                 print(f"| camelhead↑ | {len(V)} | {name} | {sec:.2f} | {ratio:.2f} | {r['peak_mb']:.0f} | {r['flips']} "
                       f"| {r['crossings']} | {r['iso']:.3f} | {note} |")
-        print(f"\n## Heat-method geodesics per source on camelhead↑ ({geo_mesh[1]} vertices)\n")
-        g = run_isolated(GEODESICS, {"mesh": str(geo_mesh[0]), "sources": 256})
+        print(f"\n## Heat-method geodesics per source on {Path(args.geodesics_mesh).name}\n")
+        g = run_isolated(GEODESICS, {"mesh": args.geodesics_mesh, "sources": 256})
         if "error" in g:
             print(f"error: {g['error']}")
             return
+        print(f"{g.pop('n')} vertices\n")
         print("| solver | precompute s | per source ms | ratio to heatparam |")
         print("|---|---|---|---|")
         for name, r in g.items():

@@ -30,7 +30,7 @@ def test_landmark_path_matches_all_pairs_quality(cylinder):
     ia, il = ra["metrics"]["iso_mean"], rl["metrics"]["iso_mean"]
     print(f"iso all-pairs {ia:.4f}, landmarks {il:.4f}")
     assert abs(il - ia) / ia <= 0.01
-    assert rl["method"]["geodesics"] == "landmarks" and rl["parameters"]["landmarks_used"] == 200
+    assert rl["method"]["geodesics"] == "landmarks" and rl["parameters"]["landmarks_used"] == 100
 
 
 def test_scale_invariance_default_vs_paper(cylinder):

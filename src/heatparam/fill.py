@@ -32,6 +32,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, Delaunay, QhullError
 
 from heatparam.errors import HeatparamError
+from heatparam.mds import conformal_layout
 from heatparam.mesh import MeshInfo, face_areas
 
 __all__ = [
@@ -91,24 +92,13 @@ class FillResult:
 # provisional layout and the decision
 # ----------------------------------------------------------------------------------------------------------
 def provisional_layout(V: np.ndarray, F: np.ndarray, info: MeshInfo | None = None) -> np.ndarray:
-    """A quick conformal layout of M (libigl LSCM, two far border vertices pinned), scaled to M's area.
+    """A quick conformal layout of M (``mds.conformal_layout``: LSCM scaled to M's area), (n,2) float64.
 
     Only used to decide where M* extends (the convex hull of this layout) and to triangulate the gaps; the
-    final map never uses it. LSCM is exact up to scale on developable surfaces. Returns (n,2) float64.
+    final map never uses it.
     """
     loop = info.boundary_loops[0] if info is not None else np.asarray(igl.boundary_loop(F), dtype=np.int64)
-    a = int(loop[0])
-    b = int(loop[np.argmax(np.linalg.norm(V[loop] - V[a], axis=1))])
-    uv, _ = igl.lscm(V, F, np.array([a, b], dtype=np.int64), np.array([[0.0, 0.0], [1.0, 0.0]]))
-    uv = np.asarray(uv, dtype=np.float64)
-    if not np.isfinite(uv).all():
-        raise HeatparamError("the provisional conformal layout for the fill failed (degenerate mesh?)")
-    a2 = _signed_areas(uv, F)
-    if a2.sum() < 0:
-        uv[:, 1] *= -1
-        a2 = -a2
-    s = np.sqrt(face_areas(V, F).sum() / max(abs(a2).sum(), 1e-300))
-    return (uv - uv.mean(axis=0)) * s
+    return conformal_layout(V, F, loop)
 
 
 def _signed_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:

@@ -13,6 +13,7 @@ import scipy.sparse.linalg as spla
 
 from heatparam.errors import HeatparamError
 from heatparam.memory import require
+from heatparam.mesh import face_areas
 
 
 def classical_mds(D: np.ndarray, dim: int = 2, seed: int = 0, overwrite: bool = False) -> np.ndarray:
@@ -111,3 +112,26 @@ def orient_layout(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
         uv = uv.copy()
         uv[:, 1] *= -1
     return uv
+
+
+def conformal_layout(V: np.ndarray, F: np.ndarray, outer: np.ndarray) -> np.ndarray:
+    """A quick reference layout: free-boundary LSCM (``igl.lscm``; two far vertices of the outer loop pinned),
+    mirrored to keep the mesh's orientation, scaled to the 3D area and centred. (n,2) float64.
+
+    Not MDS: the fill uses it to decide where M* extends, the refinement as a fallback start when the MDS layout
+    folds. LSCM is exact up to scale on developable surfaces.
+    """
+    import igl
+
+    a = int(outer[0])
+    b = int(outer[np.argmax(np.linalg.norm(V[outer] - V[a], axis=1))])
+    uv, _ = igl.lscm(V, F, np.array([a, b], dtype=np.int64), np.array([[0.0, 0.0], [1.0, 0.0]]))
+    uv = np.asarray(uv, dtype=np.float64)
+    if not np.isfinite(uv).all():
+        raise HeatparamError("the conformal (LSCM) layout failed: is the mesh degenerate?")
+    e1, e2 = uv[F[:, 1]] - uv[F[:, 0]], uv[F[:, 2]] - uv[F[:, 0]]
+    signed = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum()
+    if signed < 0:
+        uv[:, 1] *= -1
+    uv *= np.sqrt(face_areas(V, F).sum() / max(abs(signed), 1e-300))
+    return uv - uv.mean(axis=0)

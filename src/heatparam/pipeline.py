@@ -94,7 +94,7 @@ def _choice(name: str, value, allowed) -> None:
 
 def default_landmarks(n: int) -> int:
     """Landmark count for the landmark path (see BENCHMARKS.md for the error/time trade-off)."""
-    return int(min(n, 200))
+    return int(min(n, 100))
 
 
 class FillSurface(NamedTuple):
@@ -158,7 +158,8 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     remap[keep] = np.arange(len(keep))
     Vc, Fc = V[keep], remap[F]
 
-    fill_used, fill_reason = _decide_fill(opts, Vc, Fc, info)
+    with prog.stage("fill decision"):
+        fill_used, fill_reason = _decide_fill(opts, Vc, Fc, info)
     fill_report: dict = {"used": fill_used, "reason": fill_reason}
     M = None
     if fill_used:

@@ -30,6 +30,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.optimize as so
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from heatparam import metrics
 from heatparam.operators import edge_lengths, intrinsic_areas, local_triangles, mollify
@@ -264,22 +265,11 @@ def tutte(V: np.ndarray, disk: Disk, backend: str = "auto") -> np.ndarray:
     return uv
 
 
-def conformal_start(V: np.ndarray, F: np.ndarray, disk: Disk, area: np.ndarray) -> np.ndarray:
-    """Free-boundary LSCM (``igl.lscm``, two outer-loop vertices pinned), scaled to the 3D area and centred."""
-    import igl
+def conformal_start(V: np.ndarray, F: np.ndarray, disk: Disk) -> np.ndarray:
+    """Free-boundary LSCM scaled to the 3D area and centred (``mds.conformal_layout``), (n,2)."""
+    from heatparam.mds import conformal_layout
 
-    b = disk.outer
-    fixed = np.array([b[0], b[len(b) // 2]], dtype=np.int64)
-    dist = float(np.linalg.norm(V[fixed[0]] - V[fixed[1]]))
-    uv, _ = igl.lscm(V, F, fixed, np.array([[0.0, 0.0], [max(dist, 1e-12), 0.0]]))
-    uv = np.asarray(uv, dtype=np.float64)
-    a = uv[F[:, 1]] - uv[F[:, 0]]
-    c = uv[F[:, 2]] - uv[F[:, 0]]
-    signed = 0.5 * (a[:, 0] * c[:, 1] - a[:, 1] * c[:, 0]).sum()
-    if signed < 0:
-        uv[:, 1] *= -1
-    uv *= np.sqrt(area.sum() / max(abs(signed), 1e-300))
-    return uv - uv.mean(axis=0)
+    return conformal_layout(V, F, disk.outer)
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -350,6 +340,29 @@ def _sd_newton_blocks(J: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndar
     return (w[:, None] * grad).reshape(m, 2, 2), w[:, None, None] * H
 
 
+#: Newton directions are solved to this relative residual by conjugate gradients preconditioned with the last
+#: Cholesky factor; the Hessian is refactorized only when that takes more than PCG_MAX_ITERS iterations.
+PCG_RTOL = 1e-3
+PCG_MAX_ITERS = 12
+
+
+def _newton_direction(H: sp.csc_matrix, rhs: np.ndarray, fac: Factor | None, backend: str
+                      ) -> tuple[np.ndarray, Factor, int]:
+    """Solve H dx = rhs, reusing a stale factorization as a preconditioner while it still works (lagged Newton).
+
+    Factorizing the (2N,2N) Hessian dominates an iteration; consecutive Hessians differ little, so a few
+    preconditioned CG steps with the previous factor usually reach PCG_RTOL for a fraction of the cost.
+    Returns (dx, the factor used, 1 if it was refactorized else 0).
+    """
+    if fac is not None:
+        prec = spla.LinearOperator(H.shape, matvec=fac.solve, dtype=np.float64)
+        dx, info = spla.cg(H, rhs, x0=fac.solve(rhs), rtol=PCG_RTOL, maxiter=PCG_MAX_ITERS, M=prec)
+        if info == 0:
+            return dx, fac, 0
+    fac = Factor(H, backend)
+    return fac.solve(rhs), fac, 1
+
+
 def polish(uv: np.ndarray, disk: Disk, g_surf: np.ndarray, area: np.ndarray, *, max_iters: int = 200,
            tol: float = 1e-6, backend: str = "auto", check_crossings: bool = True, method: str = "newton",
            bar=None) -> tuple[np.ndarray, dict]:
@@ -369,6 +382,7 @@ def polish(uv: np.ndarray, disk: Disk, g_surf: np.ndarray, area: np.ndarray, *, 
     x = uv.copy()
     hist = []
     crossing_rejects = 0
+    fac, refactorizations = None, 0
     it = 0
     converged = False
     while it < max_iters:
@@ -397,7 +411,8 @@ def polish(uv: np.ndarray, disk: Disk, g_surf: np.ndarray, area: np.ndarray, *, 
             rhs = -np.concatenate([gr[:, 0], gr[:, 1]])
             lam = 1e-9 * float(H.diagonal().mean())
             H = H + sp.identity(2 * N, format="csc") * lam
-            dx = Factor(H, backend).solve(rhs)
+            dx, fac, fresh = _newton_direction(H, rhs, fac, backend)
+            refactorizations += fresh
             d = np.column_stack([dx[:N], dx[N:]])
         else:
             R, W2 = _polar_weights(J)
@@ -439,6 +454,7 @@ def polish(uv: np.ndarray, disk: Disk, g_surf: np.ndarray, area: np.ndarray, *, 
             break
     info = {"iterations": it, "converged": converged, "energy_start": float(hist[0] / 4 if hist else np.nan),
             "energy_end": float(hist[-1] / 4 if hist else np.nan), "crossing_rejected_steps": crossing_rejects,
+            "factorizations": refactorizations,
             "seconds": round(time.perf_counter() - t0, 3)}
     return x, info
 
@@ -485,7 +501,7 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=Non
     cross = _outer_crossings(x, disk) if (d > 0).all() else -1
     report["start"]["crossings_before_polish"] = cross
     if not (d > 0).all() or cross != 0:
-        xl = _fan_centres(conformal_start(V, F, disk, area), disk)
+        xl = _fan_centres(conformal_start(V, F, disk), disk)
         dl = _det(jacobians(xl, disk.F, g_all))
         report["start"]["lscm_flips"] = int((dl <= 0).sum())
         if (dl > 0).all() and _outer_crossings(xl, disk) == 0:
