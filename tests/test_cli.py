@@ -172,3 +172,18 @@ def test_all_pairs_guard(tmp_path, patch_off, capsys, monkeypatch):
     assert main(["unwrap", str(src), "-o", str(out), "--geodesics", "all-pairs", "--quiet", "--fill", "none"]) == 2
     err = capsys.readouterr().err
     assert "GiB" in err and "landmarks" in err and not out.exists()
+
+
+def test_fill_options_reach_the_report(tmp_path):
+    from heatparam import shapes as sh
+
+    s = sh.cylinder_with_holes(h=0.09)
+    src = tmp_path / "holes.off"
+    write_off(src, s.V, s.F)
+    rep = tmp_path / "r.json"
+    assert main(["unwrap", str(src), "-o", str(tmp_path / "o.obj"), "--fill", "poisson", "--fill-depth", "7",
+                 "--refine", "none", "--report", str(rep), "--quiet"]) == 0
+    r = json.loads(rep.read_text())
+    assert r["method"]["fill"]["used"] and r["method"]["fill"]["method"] == "poisson"
+    assert r["method"]["fill"]["depth"] == 7 and r["parameters"]["fill_depth"] == 7
+    assert "fill" in r["timings_s"] and r["method"]["fill"]["vertices"] > 0

@@ -59,6 +59,9 @@ def build_parser() -> argparse.ArgumentParser:
     u.add_argument("--fill", choices=FILL_MODES, default=d.fill,
                    help="fill surface M* for holes/concave borders: auto decides from the mesh (and uses the "
                         "biharmonic fill), poisson = the paper's screened Poisson surface (default: %(default)s)")
+    u.add_argument("--fill-depth", type=int, default=d.fill_depth, metavar="D",
+                   help="octree depth of the Poisson reconstruction for --fill poisson (default: automatic "
+                        "from the mesh's size and edge length, 6-9)")
     u.add_argument("--geodesics", choices=GEODESIC_MODES, default=d.geodesics,
                    help=f"all-pairs (paper), landmarks (O(n·k)), or auto: all-pairs up to "
                         f"{d.all_pairs_max} vertices (default: %(default)s)")
@@ -116,7 +119,7 @@ def cmd_unwrap(args: argparse.Namespace) -> int:
     V, F = io.load_mesh(args.input)
     opts = Options(fill=args.fill, geodesics=args.geodesics, landmarks=args.landmarks, time_step=args.time_step,
                    t_coef=args.t_coef, solver=args.solver, seed=args.seed, refine=args.refine,
-                   progress=not args.quiet)
+                   fill_depth=args.fill_depth, progress=not args.quiet)
     result = parameterize(V, F, opts)
     uv, report = result
     report["input"] = str(args.input)
