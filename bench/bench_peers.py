@@ -1,6 +1,6 @@
 """heatparam vs libigl peers (LSCM, ARAP, SLIM) on the disk-like test meshes: a markdown table on stdout.
 
-Usage: ``python bench/bench_peers.py [name ...]`` (names of /work/shared/meshes files or generated shapes).
+Usage: ``python bench/bench_peers.py [name ...]`` (names of ../shared/meshes files or generated shapes).
 Columns: flips, boundary crossings, iso mean/p95, conformal mean, area mean (``metrics.summary``; these are
 scale-normalized), true-scale layout error (``shapes.layout_error``, only where ``uv_true`` is known; maps that
 are not at true scale are first scaled by ``uv_scale`` and marked ``*``), seconds (wall).
@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import sys
 import time
-from pathlib import Path
 
 import igl
 import numpy as np
+from common import SHARED
 
 from heatparam import io, metrics, pipeline, shapes
 
-MESH_DIR = Path("/work/shared/meshes")
 MESHES = ["camelhead.off", "halftunnel.off", "beetle.off", "woody.obj", "bump-domain.obj"]
 SHAPES = ["cylinder_patch", "cylinder_with_holes", "cone_s_strip", "curved_cap_with_holes"]
 
@@ -26,11 +25,8 @@ def load(name: str):
     if hasattr(shapes, name):
         s = getattr(shapes, name)()
         return s.V, s.F, s.uv_true
-    try:
-        V, F = io.load_mesh(MESH_DIR / name)
-    except Exception:  # heatparam.io reads triangles only (halftunnel.off holds quads): libigl splits them
-        V, F = igl.read_triangle_mesh(str(MESH_DIR / name))
-    return np.asarray(V, np.float64), np.asarray(F, np.int64), None
+    V, F = io.load_mesh(SHARED / name)
+    return V, F, None
 
 
 def _outer(F):

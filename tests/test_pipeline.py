@@ -82,3 +82,12 @@ def test_bad_options_rejected(cylinder):
         parameterize(cylinder.V, cylinder.F, landmarks=2)
     with pytest.raises(TypeError):
         Options(bogus=1)
+
+
+def test_default_pipeline_deterministic():
+    """Fill, landmarks and refinement with the same seed: bit-identical output."""
+    sh = shapes.cylinder_with_holes(h=0.09)
+    a, ra = parameterize(sh.V, sh.F, seed=3)
+    b, rb = parameterize(sh.V, sh.F, seed=3)
+    assert ra["method"]["fill"]["used"] and ra["method"]["refine"]["method"] == "sd"
+    assert np.array_equal(a, b)

@@ -2,37 +2,23 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from heatparam import pipeline, refine, shapes
 
-MESH_DIR = Path("/work/shared/meshes")
-HAVE_FILL = importlib.util.find_spec("heatparam.fill") is not None
-needs_fill = pytest.mark.skipif(not HAVE_FILL, reason="needs heatparam.fill (Poisson fill of holes/concave borders)")
+from conftest import shared_mesh
 
 
 def _param(V, F):
-    """The defaults; until heatparam.fill exists, ``fill='auto'`` cannot run, so the fill is turned off."""
-    return pipeline.parameterize(V, F) if HAVE_FILL else pipeline.parameterize(V, F, fill="none")
+    """The pipeline with its default settings (fill auto, refine sd)."""
+    return pipeline.parameterize(V, F)
 
 
 def _load(name):
-    import igl
-
     from heatparam import io
 
-    p = MESH_DIR / name
-    if not p.is_file():
-        pytest.skip(f"{p} not available")
-    try:
-        return io.load_mesh(p)
-    except Exception:  # halftunnel.off has quads; heatparam.io reads triangles only
-        V, F = igl.read_triangle_mesh(str(p))
-        return np.asarray(V, np.float64), np.asarray(F, np.int64)
+    return io.load_mesh(shared_mesh(name))
 
 
 # ---------------------------------------------------------------------------------------------------------- units
@@ -88,12 +74,10 @@ def test_cylinder_patch_isometric():
     _check_isometric(shapes.cylinder_patch())
 
 
-@needs_fill
 def test_cylinder_with_holes_isometric():
     _check_isometric(shapes.cylinder_with_holes())
 
 
-@needs_fill
 def test_cone_s_strip_isometric():
     _check_isometric(shapes.cone_s_strip())
 
