@@ -434,9 +434,27 @@ def _gap_polygons(uv: np.ndarray, loops: list[np.ndarray], h: float) -> list[tup
         ids = outer[(a + np.arange(span + 1)) % n]
         if _bay_depth(uv[ids]) < MIN_BAY_DEPTH * h:
             continue  # a nearly straight stretch of border, not a concavity: leave it (and its slivers) out
+        ids = _trim_bay_ends(uv, ids, MIN_BAY_DEPTH * h)
         extra = _subdivide(uv[ids[-1]], uv[ids[0]], h)
         out.append((np.r_[ids, np.full(len(extra), -1)], np.vstack([uv[ids], extra])))
     return out
+
+
+def _trim_bay_ends(uv: np.ndarray, ids: np.ndarray, tol: float) -> np.ndarray:
+    """Drop the ends of a bay's border chain that run along its hull edge (closer than ``tol``).
+
+    Such a stretch would make the bay polygon a sliver of near-zero width along the hull edge, on which the
+    constrained triangulation (without boundary splits) degenerates: a 34-point bay of a coarse cylinder with a
+    notch took Triangle 38 s and 300k points. The new ends are the last chain points within ``tol`` of the hull
+    edge, so the shortened chord stays within ``tol`` of the hull, outside M.
+    """
+    P = uv[ids]
+    d = P[-1] - P[0]
+    nrm = np.array([-d[1], d[0]]) / (np.linalg.norm(d) + 1e-300)
+    far = np.flatnonzero(np.abs((P - P[0]) @ nrm) >= tol)
+    if len(far) == 0:
+        return ids
+    return ids[max(far[0] - 1, 0) : min(far[-1] + 1, len(ids) - 1) + 1]
 
 
 def _bay_depth(chain: np.ndarray) -> float:
