@@ -196,3 +196,11 @@ def test_auto_falls_back_when_the_fill_fails(cyl_holes, monkeypatch):
     assert any("fill surface failed" in w for w in rep["warnings"])
     with pytest.raises(HeatparamError, match="produced no surface"):
         pipeline.parameterize(cyl_holes.V, cyl_holes.F, fill="poisson", refine="none")
+
+
+def test_poisson_fill_refuses_planar_mesh():
+    sh = shapes.flat_square()
+    with pytest.raises(HeatparamError, match="planar"):
+        pipeline.parameterize(sh.V, sh.F, fill="poisson")
+    uv, rep = pipeline.parameterize(sh.V, sh.F, fill="biharmonic", refine="none")  # the alternative works
+    assert rep["metrics"]["flips"] == 0

@@ -304,6 +304,10 @@ def locate_points(P: np.ndarray, V: np.ndarray, F: np.ndarray) -> tuple[np.ndarr
     return np.asarray(fi, dtype=np.int64), B, np.sqrt(np.maximum(d2, 0.0))
 
 
+#: RMS distance to the best-fit plane, relative to the bounding-box diagonal, below which M counts as planar.
+PLANAR_TOL = 1e-6
+
+
 def poisson_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo, seed: int = 0, depth: int = 0,
                  remesh: bool = True) -> FillResult:
     """The paper's fill (§2.5): screened Poisson surface M* of M's oriented samples (Eq. 15-16), trimmed.
@@ -321,8 +325,13 @@ def poisson_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo, seed: int = 0, de
 
     Raises
     ------
-    HeatparamError when the reconstruction or the trimming leaves nothing usable.
+    HeatparamError when the reconstruction or the trimming leaves nothing usable, or when M is planar.
     """
+    c = V.mean(axis=0)
+    thickness = np.linalg.svd(V - c, compute_uv=False)[-1] / np.sqrt(len(V))  # RMS distance to best-fit plane
+    if thickness <= PLANAR_TOL * info.diameter:
+        raise HeatparamError("the mesh is planar: the Poisson surface of a flat sheet is degenerate — "
+                             "use --fill biharmonic (or auto)")
     t0 = time.perf_counter()
     d = int(depth) if depth else auto_depth(info)
     Vp, Fp = poisson_reconstruct(V, F, d, seed)
