@@ -22,6 +22,7 @@ Every function takes plain arrays: ``V`` (n,3) float64, ``F`` (m,3) int64, and r
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import igl
@@ -91,12 +92,16 @@ class FillResult:
 # ----------------------------------------------------------------------------------------------------------
 # provisional layout and the decision
 # ----------------------------------------------------------------------------------------------------------
-def provisional_layout(V: np.ndarray, F: np.ndarray, info: MeshInfo | None = None) -> np.ndarray:
+def provisional_layout(V: np.ndarray, F: np.ndarray, info: MeshInfo | None = None,
+                       conformal: Callable[[], np.ndarray] | None = None) -> np.ndarray:
     """A quick conformal layout of M (``mds.conformal_layout``: LSCM scaled to M's area), (n,2) float64.
 
     Only used to decide where M* extends (the convex hull of this layout) and to triangulate the gaps; the
-    final map never uses it.
+    final map never uses it. ``conformal``, if given, returns that layout already computed (the pipeline
+    computes it at most once per run and shares it with the refinement's fallback start).
     """
+    if conformal is not None:
+        return conformal()
     loop = info.boundary_loops[0] if info is not None else np.asarray(igl.boundary_loop(F), dtype=np.int64)
     return conformal_layout(V, F, loop)
 
@@ -116,7 +121,8 @@ def concavity(uv: np.ndarray, F: np.ndarray) -> float:
     return float(hull.volume) / max(area, 1e-300)
 
 
-def needs_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo) -> tuple[bool, str]:
+def needs_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo,
+               conformal: Callable[[], np.ndarray] | None = None) -> tuple[bool, str]:
     """Whether M needs a fill surface M* (§2.5): it has holes, or its border is concave.
 
     Concavity is measured on the provisional layout (:func:`provisional_layout`): convex-hull area / area
@@ -125,7 +131,7 @@ def needs_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo) -> tuple[bool, str]
     if info.n_holes > 0:
         return True, f"auto: {info.n_holes} hole{'s' if info.n_holes > 1 else ''}"
     try:
-        ratio = concavity(provisional_layout(V, F, info), F)
+        ratio = concavity(provisional_layout(V, F, info, conformal), F)
     except HeatparamError:
         return False, "auto: no fill (the concavity test failed: provisional layout degenerate)"
     if ratio > CONCAVITY_THRESHOLD:
@@ -134,12 +140,12 @@ def needs_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo) -> tuple[bool, str]
 
 
 def fill_surface(V: np.ndarray, F: np.ndarray, info: MeshInfo, method: str = "biharmonic", seed: int = 0,
-                 depth: int = 0) -> FillResult:
+                 depth: int = 0, conformal: Callable[[], np.ndarray] | None = None) -> FillResult:
     """Build M* with ``method`` (one of :data:`FILL_METHODS`); see :func:`poisson_fill`, :func:`biharmonic_fill`."""
     if method == "poisson":
-        return poisson_fill(V, F, info, seed=seed, depth=depth)
+        return poisson_fill(V, F, info, seed=seed, depth=depth, conformal=conformal)
     if method == "biharmonic":
-        return biharmonic_fill(V, F, info)
+        return biharmonic_fill(V, F, info, conformal=conformal)
     raise HeatparamError(f"fill method must be one of {', '.join(FILL_METHODS)}; got {method!r}")
 
 
@@ -309,7 +315,7 @@ PLANAR_TOL = 1e-6
 
 
 def poisson_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo, seed: int = 0, depth: int = 0,
-                 remesh: bool = True) -> FillResult:
+                 remesh: bool = True, conformal: Callable[[], np.ndarray] | None = None) -> FillResult:
     """The paper's fill (§2.5): screened Poisson surface M* of M's oriented samples (Eq. 15-16), trimmed.
 
     Parameters
@@ -318,6 +324,7 @@ def poisson_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo, seed: int = 0, de
     info : its :class:`heatparam.mesh.MeshInfo`. seed : the surface sampling.
     depth : octree depth of PoissonRecon (0 = :func:`auto_depth`, a cell of about half a mean edge).
     remesh : remesh M* to a uniform edge length of M's mean edge (gpytoolbox ``remesh_botsch``).
+    conformal : the provisional layout, if already computed (see :func:`provisional_layout`).
 
     Returns
     -------
@@ -335,7 +342,7 @@ def poisson_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo, seed: int = 0, de
     t0 = time.perf_counter()
     d = int(depth) if depth else auto_depth(info)
     Vp, Fp = poisson_reconstruct(V, F, d, seed)
-    uv = provisional_layout(V, F, info)
+    uv = provisional_layout(V, F, info, conformal)
     near = NEAR_FRACTION * info.diameter
     Vs, Fs, facts = trim_to_hull(Vp, Fp, V, F, uv, near)
     if len(Fs) < 10:
@@ -529,7 +536,8 @@ def _orient_gap(T: np.ndarray, P2: np.ndarray, ids: np.ndarray, F: np.ndarray) -
     return T[:, ::-1].copy() if m_has_ab == g_has_ab else T
 
 
-def biharmonic_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo) -> FillResult:
+def biharmonic_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo,
+                    conformal: Callable[[], np.ndarray] | None = None) -> FillResult:
     """M* = M plus its gaps, triangulated in M's provisional layout and lifted by a biharmonic extension.
 
     The region is the convex hull of M's provisional layout (as for :func:`poisson_fill`); its gaps are the
@@ -547,7 +555,7 @@ def biharmonic_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo) -> FillResult:
 
     t0 = time.perf_counter()
     n = len(V)
-    uv = provisional_layout(V, F, info)
+    uv = provisional_layout(V, F, info, conformal)
     h = info.mean_edge
     Tall = [F]
     Lall = [gpy.halfedge_lengths_squared(V, F)]  # M's own triangles: their 3D lengths

@@ -7,7 +7,9 @@ Stages: validate (``mesh``) → [Poisson fill M*, §2.5 (``fill``)] → operator
 
 from __future__ import annotations
 
+import functools
 import platform
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, fields
 from typing import NamedTuple
 
@@ -158,8 +160,16 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     remap[keep] = np.arange(len(keep))
     Vc, Fc = V[keep], remap[F]
 
+    # M's LSCM layout: the fill's provisional layout and the refinement's fallback start; computed at most once,
+    # shared read-only.
+    @functools.cache
+    def conformal() -> np.ndarray:
+        uv0 = mds.conformal_layout(Vc, Fc, info.boundary_loops[0])
+        uv0.setflags(write=False)
+        return uv0
+
     with prog.stage("fill decision"):
-        fill_used, fill_reason = _decide_fill(opts, Vc, Fc, info)
+        fill_used, fill_reason = _decide_fill(opts, Vc, Fc, info, conformal)
     fill_report: dict = {"used": fill_used, "reason": fill_reason}
     M = None
     if fill_used:
@@ -168,7 +178,8 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
         method = "poisson" if opts.fill == "poisson" else "biharmonic"  # auto: the biharmonic fill (docs/fill.md)
         try:
             with prog.stage("fill"):
-                M = fill.fill_surface(Vc, Fc, info, method=method, seed=opts.seed, depth=opts.fill_depth)
+                M = fill.fill_surface(Vc, Fc, info, method=method, seed=opts.seed, depth=opts.fill_depth,
+                                      conformal=conformal)
         except HeatparamError as exc:
             if opts.fill != "auto":
                 raise
@@ -191,7 +202,7 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
         from heatparam import refine
 
         with prog.stage("refine"):
-            uvc, refine_report = refine.refine(Vc, Fc, uvc, opts, progress=prog)
+            uvc, refine_report = refine.refine(Vc, Fc, uvc, opts, progress=prog, conformal=conformal)
 
     uv = np.zeros((len(V), 2))
     uv[keep] = uvc
@@ -225,7 +236,8 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     return Result(uv, report, surface)
 
 
-def _decide_fill(opts: Options, V: np.ndarray, F: np.ndarray, info: MeshInfo) -> tuple[bool, str]:
+def _decide_fill(opts: Options, V: np.ndarray, F: np.ndarray, info: MeshInfo,
+                 conformal: Callable[[], np.ndarray]) -> tuple[bool, str]:
     """Whether to compute on a Poisson fill M* (§2.5), and why."""
     if opts.fill == "none":
         return False, "disabled (--fill none)"
@@ -233,7 +245,7 @@ def _decide_fill(opts: Options, V: np.ndarray, F: np.ndarray, info: MeshInfo) ->
         return True, f"requested (--fill {opts.fill})"
     from heatparam import fill
 
-    return fill.needs_fill(V, F, info)
+    return fill.needs_fill(V, F, info, conformal)
 
 
 class Layout(NamedTuple):

@@ -25,6 +25,7 @@ stage turns the raw MDS layout into a bijective, near-isometric map at true scal
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -468,8 +469,12 @@ def surface_gradients(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndar
     return hat_gradients(local_triangles(lengths)), intrinsic_areas(lengths)
 
 
-def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=None) -> tuple[np.ndarray, dict]:
+def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=None,
+           conformal: Callable[[], np.ndarray] | None = None) -> tuple[np.ndarray, dict]:
     """Make the MDS layout ``uv`` (n,2) of (V (n,3), F (m,3)) flip-free and near-isometric (true scale).
+
+    ``conformal``, if given, returns the LSCM layout of (V, F) for the fallback start (already computed by the
+    fill decision, so it is not computed twice).
 
     Returns the refined layout (n,2) and a JSON-able report of what was done.
     """
@@ -501,7 +506,7 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=Non
     cross = _outer_crossings(x, disk) if (d > 0).all() else -1
     report["start"]["crossings_before_polish"] = cross
     if not (d > 0).all() or cross != 0:
-        xl = _fan_centres(conformal_start(V, F, disk), disk)
+        xl = _fan_centres(conformal() if conformal is not None else conformal_start(V, F, disk), disk)
         dl = _det(jacobians(xl, disk.F, g_all))
         report["start"]["lscm_flips"] = int((dl <= 0).sum())
         if (dl > 0).all() and _outer_crossings(xl, disk) == 0:
