@@ -54,8 +54,6 @@ def _cmap():
 
 def draw_checker_3d(ax, V: np.ndarray, F: np.ndarray, uv: np.ndarray, cells: int = 16, title: str = "") -> None:
     """The 3D mesh in an orthographic view along its thinnest principal axis, checkerboard through the map."""
-    from matplotlib.collections import PolyCollection
-
     if len(F) > MAX_FACES_3D:
         F = F[np.linspace(0, len(F) - 1, MAX_FACES_3D).astype(np.int64)]
     # Subdivide (3D and UV together) so the checker squares have smooth edges on coarse meshes.
@@ -65,23 +63,11 @@ def draw_checker_3d(ax, V: np.ndarray, F: np.ndarray, uv: np.ndarray, cells: int
 
         P, F = igl.upsample(np.hstack([V, uv]), F, levels)
         V, uv = P[:, :3], P[:, 3:]
-    c = V.mean(axis=0)
-    _, _, Wt = np.linalg.svd(V - c, full_matrices=False)
-    P = (V - c) @ Wt.T  # principal frame: x, y in-plane, z = view direction
     span = float(np.ptp(uv, axis=0).max()) or 1.0
     uvc = uv[F].mean(axis=1) / (span / cells)
     checker = (np.floor(uvc[:, 0]) + np.floor(uvc[:, 1])) % 2
-    n = np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]])
-    n /= np.linalg.norm(n, axis=1, keepdims=True) + 1e-300
-    shade = 0.35 + 0.65 * np.abs(n[:, 2])
     base = np.where(checker[:, None] > 0, [[0.95, 0.55, 0.1]], [[0.15, 0.2, 0.55]])
-    colors = np.clip(base * shade[:, None], 0, 1)
-    order = np.argsort(P[F, 2].mean(axis=1))  # painter's algorithm: far faces first
-    ax.add_collection(PolyCollection(P[F[order]][:, :, :2], facecolors=colors[order], edgecolors="none",
-                                     antialiaseds=False))
-    ax.set_aspect("equal")
-    ax.autoscale_view()
-    ax.set_axis_off()
+    _draw_shaded(ax, V, F, base, _principal_frame(V), edges=False)
     ax.set_title(title or "3D mesh, checkerboard through the map", fontsize=10)
 
 
@@ -101,13 +87,8 @@ def save_preview(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.n
         from matplotlib.collections import PolyCollection
 
         fs = fill_surface
-        frame = _principal_frame(V)
-        draw_surface_3d(axes[2], fs.V, fs.F, color=(0.8, 0.8, 0.8), frame=frame, edges=len(fs.F) < 10_000)
-        c, Wt = frame
-        P = (V - c) @ Wt.T
-        axes[2].add_collection(PolyCollection(P[F][:, :, :2], facecolors=(0.35, 0.5, 0.85, 0.55), edgecolors="none"))
-        axes[2].autoscale_view()
-        axes[2].set_title(f"fill surface M* ({fs.method}, {len(fs.V)} vertices) with M over it", fontsize=10)
+        draw_fill_overlay(axes[2], V, F, fs.V, fs.F, f"fill surface M* ({fs.method}, {len(fs.V)} vertices) "
+                          "with M over it")
         ax = axes[3]
         ax.add_collection(PolyCollection(fs.uv[fs.F], facecolors=(0.8, 0.8, 0.8), edgecolors=(0.6, 0.6, 0.6),
                                          linewidths=0.1))
@@ -128,17 +109,16 @@ def _principal_frame(V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return c, Wt
 
 
-def draw_surface_3d(ax, V: np.ndarray, F: np.ndarray, color=(0.75, 0.75, 0.8), frame=None, edges: bool = False,
-                    title: str = "") -> None:
-    """Shaded orthographic view of (V, F) in ``frame`` = (centre, axes) (default: V's principal frame)."""
+def _draw_shaded(ax, V: np.ndarray, F: np.ndarray, base: np.ndarray, frame, edges: bool) -> None:
+    """Orthographic view of (V, F) in ``frame`` = (centre, axes): faces in ``base`` colours (m,3) times a
+    Lambert shade, far faces first (painter's algorithm)."""
     from matplotlib.collections import PolyCollection
 
-    c, Wt = frame if frame is not None else _principal_frame(V)
-    P = (V - c) @ Wt.T
+    c, Wt = frame
+    P = (V - c) @ Wt.T  # x, y in the view plane, z along the view
     n = np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]])
     n /= np.linalg.norm(n, axis=1, keepdims=True) + 1e-300
-    shade = 0.35 + 0.65 * np.abs(n[:, 2])
-    colors = np.clip(np.asarray(color, dtype=float)[None, :] * shade[:, None], 0, 1)
+    colors = np.clip(base * (0.35 + 0.65 * np.abs(n[:, 2]))[:, None], 0, 1)
     order = np.argsort(P[F, 2].mean(axis=1))
     ax.add_collection(PolyCollection(P[F[order]][:, :, :2], facecolors=colors[order],
                                      edgecolors=(0, 0, 0, 0.25) if edges else "none",
@@ -146,6 +126,26 @@ def draw_surface_3d(ax, V: np.ndarray, F: np.ndarray, color=(0.75, 0.75, 0.8), f
     ax.set_aspect("equal")
     ax.autoscale_view()
     ax.set_axis_off()
+
+
+def draw_fill_overlay(ax, V: np.ndarray, F: np.ndarray, Vs: np.ndarray, Fs: np.ndarray, title: str) -> None:
+    """The fill surface M* (grey) with M drawn over it (translucent blue), in M's principal frame (Figure 7b)."""
+    from matplotlib.collections import PolyCollection
+
+    frame = _principal_frame(V)
+    draw_surface_3d(ax, Vs, Fs, color=(0.8, 0.8, 0.8), frame=frame, edges=len(Fs) < 10_000)
+    c, Wt = frame
+    P = (V - c) @ Wt.T
+    ax.add_collection(PolyCollection(P[F][:, :, :2], facecolors=(0.35, 0.5, 0.85, 0.55), edgecolors="none"))
+    ax.autoscale_view()
+    ax.set_title(title, fontsize=10)
+
+
+def draw_surface_3d(ax, V: np.ndarray, F: np.ndarray, color=(0.75, 0.75, 0.8), frame=None, edges: bool = False,
+                    title: str = "") -> None:
+    """Shaded orthographic view of (V, F) in ``frame`` = (centre, axes) (default: V's principal frame)."""
+    base = np.broadcast_to(np.asarray(color, dtype=float), (len(F), 3))
+    _draw_shaded(ax, V, F, base, frame if frame is not None else _principal_frame(V), edges)
     if title:
         ax.set_title(title, fontsize=10)
 
@@ -155,18 +155,9 @@ def save_fill_figure(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, Vs: 
     """Paper Figure 7: (a) the mesh M, (b) the fill surface M* (grey) with M drawn over it (blue), one view."""
     from heatparam.io import atomic_write
 
-    frame = _principal_frame(V)
     plt, fig, axes = _figure(2)
-    draw_surface_3d(axes[0], V, F, color=(0.35, 0.5, 0.85), frame=frame, title=f"{title} — (a) mesh M")
-    draw_surface_3d(axes[1], Vs, Fs, color=(0.8, 0.8, 0.8), frame=frame, edges=len(Fs) < 10_000)
-    c, Wt = frame
-    P = (V - c) @ Wt.T
-    from matplotlib.collections import PolyCollection
-
-    axes[1].add_collection(PolyCollection(P[F][:, :, :2], facecolors=(0.35, 0.5, 0.85, 0.55), edgecolors="none"))
-    axes[1].set_title(f"(b) fill surface M* ({len(Vs)} vertices) with M over it", fontsize=10)
-    for ax in axes:
-        ax.autoscale_view()
+    draw_surface_3d(axes[0], V, F, color=(0.35, 0.5, 0.85), frame=_principal_frame(V), title=f"{title} — (a) mesh M")
+    draw_fill_overlay(axes[1], V, F, Vs, Fs, f"(b) fill surface M* ({len(Vs)} vertices) with M over it")
     fig.tight_layout()
     with atomic_write(path, "wb") as fh:
         fig.savefig(fh, format="png", dpi=64)
