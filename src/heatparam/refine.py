@@ -465,7 +465,8 @@ def polish(uv: np.ndarray, disk: Disk, g_surf: np.ndarray, area: np.ndarray, *, 
 # ----------------------------------------------------------------------------------------------------------
 def surface_gradients(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Hat gradients (m,3,2) of each 3D triangle in its own frame, and the areas (m,) (mollified lengths)."""
-    lengths, _ = mollify(edge_lengths(V, F), 1e-4 * float(edge_lengths(V, F).mean()))
+    raw = edge_lengths(V, F)
+    lengths, _ = mollify(raw, 1e-4 * float(raw.mean()))
     return hat_gradients(local_triangles(lengths)), intrinsic_areas(lengths)
 
 
