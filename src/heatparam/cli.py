@@ -13,7 +13,7 @@ from pathlib import Path
 
 from heatparam import __version__
 from heatparam.errors import HeatparamError
-from heatparam.pipeline import FILL_MODES, GEODESIC_MODES, REFINE_MODES, Options
+from heatparam.pipeline import FILL_MODES, GEODESIC_MODES, REFINE_MODES, STRESS_MODES, Options
 
 EXIT_BAD_INPUT = 2
 
@@ -70,6 +70,9 @@ def build_parser() -> argparse.ArgumentParser:
     u.add_argument("--refine", choices=REFINE_MODES, default=d.refine,
                    help="sd = flip-free symmetric Dirichlet polish at true scale with overlap checks; none = the "
                         "paper's raw MDS map (default: %(default)s)")
+    u.add_argument("--stress", choices=STRESS_MODES, default=d.stress,
+                   help="smacof = stress majorization of Eq. 1 on the geodesic distances after MDS, before "
+                        "--refine (see BENCHMARKS.md §7); none = the MDS layout as is (default: %(default)s)")
     u.add_argument("--seed", type=int, default=d.seed, help="random seed (default: %(default)s)")
     u.add_argument("--report", metavar="R.json", help="write a JSON report (parameters, timings, metrics)")
     u.add_argument("--preview", metavar="P.png", help="write a PNG: UV layout coloured by distortion + 3D view")
@@ -119,7 +122,7 @@ def cmd_unwrap(args: argparse.Namespace) -> int:
     V, F = io.load_mesh(args.input)
     opts = Options(fill=args.fill, geodesics=args.geodesics, landmarks=args.landmarks, time_step=args.time_step,
                    t_coef=args.t_coef, solver=args.solver, seed=args.seed, refine=args.refine,
-                   fill_depth=args.fill_depth, progress=not args.quiet)
+                   stress=args.stress, fill_depth=args.fill_depth, progress=not args.quiet)
     result = parameterize(V, F, opts)
     uv, report = result
     report["input"] = str(args.input)

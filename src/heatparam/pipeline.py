@@ -26,6 +26,7 @@ from heatparam.solvers import BACKENDS
 FILL_MODES = ("auto", "poisson", "biharmonic", "none")
 GEODESIC_MODES = ("auto", "all-pairs", "landmarks")
 REFINE_MODES = ("none", "sd")
+STRESS_MODES = ("none", "smacof")
 
 
 @dataclass
@@ -47,8 +48,13 @@ class Options:
     all_pairs_max : largest vertex count for which ``auto`` takes the all-pairs path.
     stress_sources : number of sources for the sampled Eq. 1 stress in the report.
     fill_depth : Poisson reconstruction depth for the fill (0 = automatic from the mesh size).
-    refine : post-MDS refinement: ``sd`` (flip-free symmetric Dirichlet polish at true scale with overlap checks,
-        from the MDS layout, or from LSCM / Tutte where that has flips; docs/refine.md) or ``none`` (raw MDS map).
+    refine : post-MDS refinement: ``sd`` (bijective symmetric Dirichlet polish at true scale inside a scaffold,
+        from the MDS layout, or from LSCM / Tutte where that is not bijective; docs/refine.md) or ``none`` (raw MDS
+        map).
+    stress : ``smacof`` = stress majorization of the raw stress of Eq. 1 (``mds.smacof``) on the MDS layout,
+        before refinement, with the distances MDS used (all-pairs: every pair; landmarks: the n×k point-landmark
+        pairs; fill: the points and M*'s vertices against the landmarks on M*); ``none`` (default, from the
+        measurement in BENCHMARKS.md §7).
     refine_iters : iteration cap of the symmetric Dirichlet polish.
     refine_tol : the polish stops when an iteration lowers the energy by less than this fraction.
     progress : show stage messages and progress bars on stderr.
@@ -66,6 +72,7 @@ class Options:
     stress_sources: int = 32
     fill_depth: int = 0
     refine: str = "sd"
+    stress: str = "none"
     refine_iters: int = 200
     refine_tol: float = 1e-6
     progress: bool = False
@@ -83,6 +90,7 @@ class Options:
         if self.landmarks < 0 or self.landmarks == 1 or self.landmarks == 2:
             raise HeatparamError(f"landmarks must be 0 (automatic) or at least 3, got {self.landmarks}")
         _choice("refine", self.refine, REFINE_MODES)
+        _choice("stress", self.stress, STRESS_MODES)
         if self.fill_depth < 0:
             raise HeatparamError(f"fill_depth must be 0 (automatic) or positive, got {self.fill_depth}")
         if not self.t_coef > 0:
@@ -224,7 +232,7 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
         "parameters": {**{f.name: getattr(opts, f.name) for f in fields(opts)},
                        "time_step_value": layout.t, "landmarks_used": layout.k},
         "method": {"geodesics": layout.mode, "solver_backend": layout.backend,
-                   "fill": fill_report, "refine": refine_report,
+                   "fill": fill_report, "stress": layout.stress or {"method": "none"}, "refine": refine_report,
                    "mass_matrix": opts.mass, "mollified_edge_length": layout.mollify_eps},
         "mesh": info.as_dict(),
         "metrics": summary,
@@ -258,6 +266,7 @@ class Layout(NamedTuple):
     t: float
     backend: str
     mollify_eps: float
+    stress: dict | None = None  # SMACOF info (``mds.smacof``, without its history) when opts.stress == "smacof"
 
 
 def _geodesic_layout(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress,
@@ -290,8 +299,13 @@ def _geodesic_layout(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress
         D_stress = D[:, cols].copy()
         with prog.stage("mds"):
             uv = mds.classical_mds(D, seed=opts.seed, overwrite=True)
+        sinfo = None
+        if opts.stress == "smacof":
+            with prog.stage("stress"):
+                np.sqrt(D, out=D)  # MDS squared D in place; sqrt(fl(x²)) = x restores it exactly
+                uv, sinfo = _smacof(uv, D)
         del D
-        return Layout(uv, None, D_stress, cols, mode, n, t, solver.backend, op.mollify_eps)
+        return Layout(uv, None, D_stress, cols, mode, n, t, solver.backend, op.mollify_eps, sinfo)
     k = n if mode == "all-pairs" else (opts.landmarks or default_landmarks(n))
     with prog.stage("geodesics"), prog.bar(k + 1, "landmark geodesics", "src") as bar:
         if k >= n:
@@ -302,17 +316,34 @@ def _geodesic_layout(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress
     if points is None:
         with prog.stage("mds"):
             uv, _ = mds.landmark_mds(DL, lm)
+        sinfo = None
+        if opts.stress == "smacof":
+            with prog.stage("stress"):
+                uv, sinfo = _smacof(uv, DL, lm)
         cols = np.arange(min(k, opts.stress_sources))
-        return Layout(uv, None, DL[:, cols], lm[cols], mode, k, t, solver.backend, op.mollify_eps)
+        return Layout(uv, None, DL[:, cols], lm[cols], mode, k, t, solver.backend, op.mollify_eps, sinfo)
     face, bary = points
     with prog.stage("mds"):
         DP = np.einsum("pc,pck->pk", bary, DL[F[face]])  # landmark distances interpolated at the points
-        both, _ = mds.landmark_mds(np.vstack([DP, DL]), Dkk=DL[lm])  # points and M*'s vertices, one frame
-        both -= both[: len(face)].mean(axis=0)
-        uv, uv_surface = both[: len(face)], both[len(face) :]
+        DA = np.vstack([DP, DL])
+        both, _ = mds.landmark_mds(DA, Dkk=DL[lm])  # points and M*'s vertices, one frame
+    sinfo = None
+    if opts.stress == "smacof":  # the same n×k pattern: points and M*'s vertices against the landmarks on M*
+        with prog.stage("stress"):
+            both, sinfo = _smacof(both, DA, len(face) + lm)
+    del DA
+    both -= both[: len(face)].mean(axis=0)
+    uv, uv_surface = both[: len(face)], both[len(face) :]
     # Stress sample: distances on the fill surface from a few of the points themselves (point sources).
     with prog.stage("geodesics"):
         cols = np.sort(rng.choice(len(face), size=min(len(face), opts.stress_sources), replace=False))
         Ds = solver.distances(heat.point_sources(F, face[cols], bary[cols], n))
         D_stress = np.einsum("pc,pck->pk", bary, Ds[F[face]])
-    return Layout(uv, uv_surface, D_stress, cols, mode, k, t, solver.backend, op.mollify_eps)
+    return Layout(uv, uv_surface, D_stress, cols, mode, k, t, solver.backend, op.mollify_eps, sinfo)
+
+
+def _smacof(X0: np.ndarray, D: np.ndarray, landmarks: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
+    """``mds.smacof`` from the MDS layout; its info for the report (without the per-iteration history)."""
+    X, info = mds.smacof(X0, D, landmarks)
+    info.pop("history")
+    return X, {"method": "smacof", **info}

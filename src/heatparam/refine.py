@@ -1,23 +1,21 @@
-"""Flip-free polish of the MDS layout and overlap resolution (issue 5).
+"""Bijective, near-isometric polish of the MDS layout at true scale (issue 5; Eq. 1 beyond the paper).
 
 Classical MDS minimizes strain (Eq. 13), not the stress of Eq. 1, and folds on strongly curved disks. This
-stage turns the raw MDS layout into a bijective, near-isometric map at true scale:
+stage turns the raw MDS layout into a bijective map at true scale:
 
-1. **Hole fans.** Every hole loop gets a virtual centre vertex joined to its boundary edges, so the mesh plus
-   its fans is a topological disk. Fan triangles are scaffold elements (Jiang et al. 2017): they must stay
-   positively oriented, which keeps every hole from overlapping itself or the surface, and their (small) energy
-   is measured against their own shape at the start of each iteration.
-2. **Start.** The MDS layout when it has no flipped triangle (fans included) and no boundary crossing;
-   otherwise a free-boundary LSCM layout scaled to the 3D area if it is valid (no flip, fans included, no
-   crossing), else a Tutte embedding of the disk (outer loop on a circle of the surface's perimeter, uniform
-   weights), bijective by Tutte's theorem. (:func:`untangle`, Garanzha et al. 2021, is implemented but off: measured to
-   fail on our cases, see ``UNTANGLE_MAX_FRACTION``.)
-3. **Polish**: symmetric Dirichlet energy Σ A_f (|J|² + |J⁻¹|²), no rescaling (its minimum is the isometry
-   itself), minimized by projected Newton (per-face 4×4 Hessian in J projected to PSD, one sparse Cholesky
-   per iteration; the SLIM proxy of Rabinovich et al. 2017 is kept as ``method="slim"``), with a line search
-   that never lets a triangle's det J cross zero (Smith & Schaefer 2015: first positive root of each face's
-   quadratic) and rejects any step after which the outer boundary crosses itself. The start is bijective and
-   every accepted step keeps it so (crossings are checked at the step's end point, not continuously).
+1. **Start.** The MDS layout when it has no flipped triangle and no boundary crossing (any loop); otherwise the
+   free-boundary LSCM layout scaled to the 3D area if that is bijective; else a uniform Tutte embedding of the
+   mesh with every hole closed by a fan (outer loop on a circle of the surface's perimeter), bijective by
+   Tutte's theorem.
+2. **Polish.** Symmetric Dirichlet energy Σ A_f (|J|² + |J⁻¹|²), no rescaling (its minimum is the isometry
+   itself), minimized by projected Newton with the closed-form Hessian eigensystem of Smith et al. 2019
+   (:func:`sd_eigensystem`; the PSD projection is a clamp of one eigenvalue) and one sparse Cholesky reused as a
+   preconditioner while it works (:func:`_newton_direction`).
+3. **Global bijectivity by a scaffold** (Jiang et al. 2017): at every iteration the rest of a box around the
+   layout — the outside of the outer loop and the inside of every hole — is triangulated (constrained
+   Delaunay, :func:`build_scaffold`) and its triangles join the energy with a small weight. The line search never
+   lets a surface or scaffold triangle's det J cross zero (Smith & Schaefer 2015: first positive root of each
+   face's quadratic), so boundaries can slide freely but never cross, and holes can take any shape.
 
 ``refine(V, F, uv, opts)`` → (uv, report). Plain arrays in and out; ``report`` is JSON-able.
 """
@@ -29,20 +27,15 @@ from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
-import scipy.optimize as so
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from threadpoolctl import threadpool_limits
 
 from heatparam import metrics
 from heatparam.operators import edge_lengths, intrinsic_areas, local_triangles, mollify
 from heatparam.solvers import Factor
 
 REFINE_MODES = ("none", "sd")
-# Untangle only when at most this fraction of the faces is flipped. 0: never — our L-BFGS implementation of
-# Garanzha et al. failed on every measured case (halftunnel 178 → 617 flips, cylinder_with_holes 3 → 959,
-# camelhead 9379 → 7291, 1-29 s), so a flipped start goes to the LSCM / Tutte starts. See docs/refine.md.
-UNTANGLE_MAX_FRACTION = 0.0
-FAN_WEIGHT = 1e-2  # scaffold (fan) face energy weight, relative to the mean surface face area
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -64,26 +57,16 @@ def hat_gradients(P: np.ndarray) -> np.ndarray:
 
 def jacobians(uv: np.ndarray, F: np.ndarray, g: np.ndarray) -> np.ndarray:
     """Per-face Jacobians (m,2,2) of the map to ``uv`` (n,2)."""
-    return np.einsum("mia,mic->mac", uv[F], g)
+    return np.matmul(uv[F].transpose(0, 2, 1), g)
 
 
 def _det(J: np.ndarray) -> np.ndarray:
     return J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
 
 
-def _cof(J: np.ndarray) -> np.ndarray:
-    """d det J / dJ."""
-    C = np.empty_like(J)
-    C[:, 0, 0] = J[:, 1, 1]
-    C[:, 1, 1] = J[:, 0, 0]
-    C[:, 0, 1] = -J[:, 1, 0]
-    C[:, 1, 0] = -J[:, 0, 1]
-    return C
-
-
 def _scatter(dJ: np.ndarray, F: np.ndarray, g: np.ndarray, n: int) -> np.ndarray:
     """Chain rule: per-face dE/dJ (m,2,2) → dE/duv (n,2)."""
-    dQ = np.einsum("mac,mic->mia", dJ, g)  # (m,3,2)
+    dQ = np.matmul(g, dJ.transpose(0, 2, 1))  # (m,3,2)
     out = np.empty((n, 2))
     idx = F.ravel()
     out[:, 0] = np.bincount(idx, weights=dQ[:, :, 0].ravel(), minlength=n)
@@ -94,7 +77,7 @@ def _scatter(dJ: np.ndarray, F: np.ndarray, g: np.ndarray, n: int) -> np.ndarray
 def symmetric_dirichlet(J: np.ndarray, w: np.ndarray) -> tuple[float, np.ndarray]:
     """Σ w_f (|J|² + |J⁻¹|²) and per-face values (inf where det J ≤ 0)."""
     d = _det(J)
-    f2 = np.einsum("mab,mab->m", J, J)
+    f2 = (J * J).sum(axis=(1, 2))
     with np.errstate(divide="ignore"):
         e = np.where(d > 0, f2 * (1.0 + 1.0 / np.where(d > 0, d, 1.0) ** 2), np.inf)
     return float(np.dot(w, e)) if np.all(d > 0) else float("inf"), e
@@ -127,12 +110,13 @@ def max_step(J: np.ndarray, D: np.ndarray) -> float:
 # the disk: surface + hole fans
 # ----------------------------------------------------------------------------------------------------------
 class Disk(NamedTuple):
+    """The mesh's boundary loops, and its faces with every hole closed by a fan (for the Tutte start)."""
+
     F: np.ndarray  # (m + f, 3) surface faces then fan faces
     m: int  # number of surface faces
     n: int  # number of surface vertices (fan centres are n, n+1, ...)
     outer: np.ndarray  # outer boundary loop (vertex ids)
     holes: list  # hole loops
-    fan_rest: np.ndarray  # (f,3,2) reference triangles of the fan faces (for untangling)
 
 
 def build_disk(V: np.ndarray, F: np.ndarray) -> Disk:
@@ -140,103 +124,14 @@ def build_disk(V: np.ndarray, F: np.ndarray) -> Disk:
 
     The outer loop is the longest boundary loop in 3D.
     """
-    n, m = len(V), len(F)
     loops = metrics.boundary_loops(F)
-    lens = [float(np.linalg.norm(V[lp] - V[np.roll(lp, -1)], axis=1).sum()) for lp in loops]
     if not loops:
         raise ValueError("refine needs a mesh with a boundary")
+    lens = [float(np.linalg.norm(V[lp] - V[np.roll(lp, -1)], axis=1).sum()) for lp in loops]
     io = int(np.argmax(lens))
-    outer = loops[io]
     holes = [lp for i, lp in enumerate(loops) if i != io]
-    fans, rest = [], []
-    for h, lp in enumerate(holes):
-        a, b = lp, np.roll(lp, -1)  # half-edges a→b as oriented in their faces
-        c = np.full(len(lp), n + h)
-        fans.append(np.column_stack([b, a, c]))
-        el = np.linalg.norm(V[a] - V[b], axis=1)
-        rad = max(lens[[i for i in range(len(loops)) if i != io][h]] / (2 * np.pi), 1e-12)
-        ht = np.sqrt(np.maximum(rad**2 - 0.25 * el**2, (0.1 * rad) ** 2))
-        P = np.zeros((len(lp), 3, 2))
-        P[:, 1, 0] = el
-        P[:, 2, 0] = 0.5 * el
-        P[:, 2, 1] = ht
-        rest.append(P)
-    Fa = np.vstack([F] + fans) if fans else F.copy()
-    fan_rest = np.concatenate(rest) if rest else np.zeros((0, 3, 2))
-    return Disk(Fa.astype(np.int64), m, n, outer, holes, fan_rest)
-
-
-def _fan_centres(uv: np.ndarray, disk: Disk) -> np.ndarray:
-    if not disk.holes:
-        return uv
-    return np.vstack([uv] + [uv[lp].mean(axis=0, keepdims=True) for lp in disk.holes])
-
-
-def _outer_crossings(uv: np.ndarray, disk: Disk) -> int:
-    return metrics.boundary_crossings(uv, disk.F)
-
-
-# ----------------------------------------------------------------------------------------------------------
-# untangling (Garanzha et al. 2021)
-# ----------------------------------------------------------------------------------------------------------
-def _chi(eps: float, d: np.ndarray) -> np.ndarray:
-    s = np.sqrt(eps * eps + d * d)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(d > 0, 0.5 * eps * eps / np.maximum(s - d, 1e-300), 0.5 * (s + d))
-
-
-def untangle(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, max_outer: int = 10,
-             theta: float = 1.0 / 128, inner_iters: int = 100, bar=None) -> tuple[np.ndarray, dict]:
-    """Garanzha et al. 2021: minimize Σ A_f [(1−θ)|J|²/χ(det J, ε) + θ(1 + det²J)/χ(det J, ε)] with ε ↓ 0.
-
-    Returns the layout (n,2) and a report (outer iterations, min det, seconds). Free boundary.
-    """
-    t0 = time.perf_counter()
-    n = len(uv)
-    w = area / area.sum()
-
-    def energy(x: np.ndarray, eps: float):
-        X = x.reshape(n, 2)
-        J = jacobians(X, F, g)
-        d = _det(J)
-        f2 = np.einsum("mab,mab->m", J, J)
-        s = np.sqrt(eps * eps + d * d)
-        chi = _chi(eps, d)
-        dchi = 0.5 + 0.5 * d / s
-        f = f2 / chi
-        gg = (1.0 + d * d) / chi
-        E = float(np.dot(w, (1 - theta) * f + theta * gg))
-        C = _cof(J)
-        dJ = (1 - theta) * (2 * J - (f * dchi)[:, None, None] * C) / chi[:, None, None]
-        dJ += theta * ((2 * d - gg * dchi) / chi)[:, None, None] * C
-        dJ *= w[:, None, None]
-        return E, _scatter(dJ, F, g, n).ravel()
-
-    x = uv.ravel().copy()
-    d = _det(jacobians(uv, F, g))
-    eps = 1.0
-    E_prev = energy(x, eps)[0]
-    it = 0
-    for it in range(1, max_outer + 1):
-        res = so.minimize(energy, x, args=(eps,), jac=True, method="L-BFGS-B",
-                          options={"maxiter": inner_iters, "gtol": 1e-9, "ftol": 1e-12})
-        x = res.x
-        E = energy(x, eps)[0]
-        d = _det(jacobians(x.reshape(n, 2), F, g))
-        dmin = float(d.min())
-        sigma = max(1.0 - E / E_prev, 0.1)
-        mu = (1.0 - sigma) * float(_chi(eps, np.array([dmin]))[0])
-        eps = 2.0 * np.sqrt(mu * (mu - dmin)) if dmin < mu else 1e-10
-        if bar is not None:
-            bar.update(1)
-        if dmin > 0 and abs(E_prev - E) / E < 1e-4:
-            break
-        E_prev = E
-        if dmin > 0 and it >= 3 and eps < 1e-9:
-            break
-    info = {"outer_iterations": it, "min_det": float(d.min()), "flips": int((d <= 0).sum()),
-            "seconds": round(time.perf_counter() - t0, 3)}
-    return x.reshape(n, 2), info
+    fans = [np.column_stack([np.roll(lp, -1), lp, np.full(len(lp), len(V) + h)]) for h, lp in enumerate(holes)]
+    return Disk(np.vstack([F, *fans]).astype(np.int64), len(F), len(V), loops[io], holes)
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -274,71 +169,141 @@ def conformal_start(V: np.ndarray, F: np.ndarray, disk: Disk) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------------------------------------
-# symmetric Dirichlet polish with the SLIM proxy
+# symmetric Dirichlet: analytic gradient and PSD-projected Hessian (Smith, De Goes & Kim 2019)
 # ----------------------------------------------------------------------------------------------------------
-class _Pattern:
-    """Sparsity pattern of the 2N×2N proxy Hessian, built once; ``matrix(vals)`` sums per-face blocks into it."""
+def svd2(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Signed closed-form SVD of 2×2 matrices: J = U diag(σ) Vᵀ with U, V rotations, σ1 ≥ |σ2|.
 
-    def __init__(self, F: np.ndarray, N: int):
-        m = len(F)
-        # unknown index of (coordinate a, corner i): a*N + F[:, i]
-        ids = np.stack([F, F + N], axis=1)  # (m,2,3)
-        ids = ids.reshape(m, 6)
-        rows = np.repeat(ids, 6, axis=1).ravel()
-        cols = np.tile(ids, (1, 6)).ravel()
-        key = cols.astype(np.int64) * (2 * N) + rows
-        uniq, self.inv = np.unique(key, return_inverse=True)
-        self.shape = (2 * N, 2 * N)
-        c, r = np.divmod(uniq, 2 * N)
-        self.indices = r.astype(np.int32)
-        self.indptr = np.searchsorted(c, np.arange(2 * N + 1)).astype(np.int32)
-        self.nnz = len(uniq)
-
-    def matrix(self, vals: np.ndarray) -> sp.csc_matrix:
-        data = np.bincount(self.inv, weights=vals.ravel(), minlength=self.nnz)
-        return sp.csc_matrix((data, self.indices, self.indptr), shape=self.shape)
-
-
-def _polar_weights(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """SLIM for symmetric Dirichlet: closest rotations R (m,2,2) and W² = U diag(w²) Uᵀ (m,2,2).
-
-    Closed-form 2×2 SVD: J = Rot(φ) diag(σ1, σ2) Rot(θ), R = Rot(φ + θ), w² = (σ − σ⁻³)/(σ − 1).
+    J (m,2,2) → U (m,2,2), σ (m,2), V (m,2,2); σ2 > 0 exactly where det J > 0.
     """
     a, b, c, d = J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1]
     e, f, g, h = 0.5 * (a + d), 0.5 * (a - d), 0.5 * (c + b), 0.5 * (c - b)
     q, r = np.hypot(e, h), np.hypot(f, g)
     a1, a2 = np.arctan2(g, f), np.arctan2(h, e)
-    phi = 0.5 * (a2 + a1)
-    s = np.maximum(np.stack([q + r, q - r], axis=1), 1e-8)
-    w2 = (s + 1.0) * (s * s + 1.0) / s**3  # (σ − σ⁻³)/(σ − 1), no singularity at σ = 1
-    cp, sp_ = np.cos(phi), np.sin(phi)
-    ca, sa = np.cos(a2), np.sin(a2)
-    R = np.stack([np.stack([ca, -sa], 1), np.stack([sa, ca], 1)], 1)
-    W2 = np.empty_like(J)
-    W2[:, 0, 0] = cp * cp * w2[:, 0] + sp_ * sp_ * w2[:, 1]
-    W2[:, 1, 1] = sp_ * sp_ * w2[:, 0] + cp * cp * w2[:, 1]
-    W2[:, 0, 1] = W2[:, 1, 0] = cp * sp_ * (w2[:, 0] - w2[:, 1])
-    return R, W2
+    return _rot(0.5 * (a2 + a1)), np.stack([q + r, q - r], axis=1), _rot(0.5 * (a1 - a2))
 
 
-def _sd_newton_blocks(J: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Gradient (m,2,2) and PSD-projected Hessian (m,4,4) of w_f·|J|²(1 + det⁻²J) w.r.t. row-major vec(J)."""
+def _rot(t: np.ndarray) -> np.ndarray:
+    c, s = np.cos(t), np.sin(t)
+    return np.stack([np.stack([c, -s], axis=1), np.stack([s, c], axis=1)], axis=1)
+
+
+def sd_eigensystem(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Gradient and Hessian eigenvalues of Ψ(J) = |J|² + |J⁻¹|² = Σ σᵢ² + σᵢ⁻² (det J > 0).
+
+    Closed form (Smith et al. 2019, 2D case): with J = U diag(σ) Vᵀ (columns uᵢ, vᵢ), ∂Ψ/∂J = U diag(2σ − 2σ⁻³) Vᵀ
+    and the Hessian's eigenpairs are (2 + 6σ₁⁻⁴, u₁v₁ᵀ), (2 + 6σ₂⁻⁴, u₂v₂ᵀ), twist
+    (2 − 2(σ₁² − σ₁σ₂ + σ₂²)/(σ₁σ₂)³, (u₂v₁ᵀ − u₁v₂ᵀ)/√2) and flip (2 + 2(σ₁² + σ₁σ₂ + σ₂²)/(σ₁σ₂)³,
+    (u₁v₂ᵀ + u₂v₁ᵀ)/√2). Only the twist eigenvalue can be negative, so the PSD projection is a clamp.
+
+    Returns dΨ/dJ (m,2,2), eigenvalues λ (m,4) in that order, U (m,2,2) and V (m,2,2).
+    """
+    U, s, V = svd2(J)
+    s1, s2 = s[:, 0], s[:, 1]
+    p3 = (s1 * s2) ** 3
+    lam = np.stack([2 + 6 / s1**4, 2 + 6 / s2**4, 2 - 2 * (s1 * s1 - s1 * s2 + s2 * s2) / p3,
+                    2 + 2 * (s1 * s1 + s1 * s2 + s2 * s2) / p3], axis=1)
+    dpsi = 2 * s - 2 / s**3
+    grad = np.matmul(U * dpsi[:, None, :], V.transpose(0, 2, 1))
+    return grad, lam, U, V
+
+
+def sd_newton_blocks(J: np.ndarray, g: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-face gradient dE/dJ (m,2,2) and PSD-projected Hessian (m,6,6) in the corner unknowns of
+    E = Σ w_f Ψ(J_f), J = Σ_i uv_i ⊗ g_i; the unknowns of a face are ordered (u₀,u₁,u₂,v₀,v₁,v₂).
+
+    An eigenmatrix u vᵀ pulls back to the corners as u ⊗ (g v), so the block is Σ_k λ_k⁺ b_k b_kᵀ.
+    """
+    grad, lam, U, V = sd_eigensystem(J)
     m = len(J)
-    j = J.reshape(m, 4)
-    d = _det(J)
-    f = np.einsum("mi,mi->m", j, j)
-    c = np.stack([j[:, 3], -j[:, 2], -j[:, 1], j[:, 0]], axis=1)
-    d2, d3, d4 = d**-2, d**-3, d**-4
-    grad = 2 * j * (1 + d2)[:, None] - 2 * (f * d3)[:, None] * c
-    K = np.zeros((4, 4))
-    K[0, 3] = K[3, 0] = 1.0
-    K[1, 2] = K[2, 1] = -1.0
-    jc = j[:, :, None] * c[:, None, :]
-    H = (2 * (1 + d2))[:, None, None] * np.eye(4) - (4 * d3)[:, None, None] * (jc + jc.transpose(0, 2, 1))
-    H += (6 * f * d4)[:, None, None] * c[:, :, None] * c[:, None, :] - (2 * f * d3)[:, None, None] * K
-    lam, Q = np.linalg.eigh(H)
-    H = np.einsum("mij,mj,mkj->mik", Q, np.maximum(lam, 1e-8 * (1 + d2)[:, None]), Q)
-    return (w[:, None] * grad).reshape(m, 2, 2), w[:, None, None] * H
+    gv = np.matmul(g, V)  # (m,3,2): column j = g·v_j per corner
+    u1, u2 = U[:, :, 0, None], U[:, :, 1, None]  # (m,2,1)
+    a11 = (u1 * gv[:, None, :, 0]).reshape(m, 6)  # u1 ⊗ g v1
+    a22 = (u2 * gv[:, None, :, 1]).reshape(m, 6)
+    a21 = (u2 * gv[:, None, :, 0]).reshape(m, 6)
+    a12 = (u1 * gv[:, None, :, 1]).reshape(m, 6)
+    r = 1.0 / np.sqrt(2.0)
+    b = np.stack([a11, a22, r * (a21 - a12), r * (a12 + a21)], axis=1)  # (m,4,6)
+    lw = w[:, None] * np.maximum(lam, 0.0)
+    blocks = np.matmul(b.transpose(0, 2, 1) * lw[:, None, :], b)
+    return w[:, None, None] * grad, blocks
+
+
+# ----------------------------------------------------------------------------------------------------------
+# the scaffold (Jiang et al. 2017): the rest of a box, triangulated around the current layout
+# ----------------------------------------------------------------------------------------------------------
+SCAFFOLD_WEIGHT = 1e-2  # largest energy weight of one scaffold triangle, relative to the mean surface face's
+SCAFFOLD_ADAPT = 2.0  # after an uncut Newton step the scaffold weight is divided by this, after a cut one multiplied
+SCAFFOLD_WEIGHT_MIN = 1e-4  # ... within [SCAFFOLD_WEIGHT_MIN, 1] × SCAFFOLD_WEIGHT
+SCAFFOLD_MARGIN = 0.5  # the box extends this fraction of the layout's extent beyond it on every side
+STALL_ITERS = 5  # the polish gives up after this many barrier-limited iterations in a row that gain < tol
+
+
+class Scaffold(NamedTuple):
+    F: np.ndarray  # (s,3) triangles over [surface vertices 0..n-1, then the box corners n..n+3]
+    box: np.ndarray  # (4,2) box corners, fixed while this scaffold is used
+
+
+def build_scaffold(uv: np.ndarray, loops: list[np.ndarray]) -> Scaffold:
+    """Triangulate (constrained Delaunay, no Steiner points) the box around ``uv`` (n,2) minus the surface.
+
+    The region is everything between a square box and the surface's outer loop, plus the inside of every hole:
+    the loops nest (box ⊃ outer loop ⊃ holes), so CDT's even-odd nesting rule gives exactly that region.
+    With every surface and scaffold triangle positively oriented, the layout is globally injective (the union is
+    a triangulated square with a fixed boundary), so boundaries cannot cross or overlap.
+    Requires the boundary loops of ``uv`` to be simple and disjoint (a bijective layout).
+    """
+    import gpytoolbox as gpy
+
+    ids = np.concatenate(loops)
+    P = uv[ids]
+    lo, hi = P.min(axis=0), P.max(axis=0)
+    c, r = 0.5 * (lo + hi), (0.5 + SCAFFOLD_MARGIN) * float((hi - lo).max())
+    box = c + r * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    E, s = [], 0
+    for lp in loops:
+        k = np.arange(s, s + len(lp))
+        E.append(np.column_stack([k, np.roll(k, -1)]))
+        s += len(lp)
+    E.append(len(ids) + np.array([[0, 1], [1, 2], [2, 3], [3, 0]]))
+    P2, T = gpy.triangulate_polygon(np.vstack([P, box]), np.vstack(E), a=0.0, q=0.0, steiner=False)
+    if len(P2) != len(ids) + 4:
+        raise ValueError("the scaffold triangulation added vertices (boundary loops touch or cross)")
+    glob = np.concatenate([ids, len(uv) + np.arange(4)])
+    return Scaffold(glob[T].astype(np.int64), box)
+
+
+def _scaffold_matrix(F: np.ndarray, blocks: np.ndarray, n: int) -> sp.csc_matrix:
+    """Sum the scaffold's 6×6 blocks into a (2n,2n) matrix; rows/columns of the fixed box corners are dropped."""
+    ids = np.concatenate([F, F + n], axis=1)  # unknown index of (coordinate a, corner i) = a*n + v
+    ids[:, :3][F >= n] = -1
+    ids[:, 3:][F >= n] = -1
+    r = np.repeat(ids, 6, axis=1).ravel()
+    c = np.tile(ids, (1, 6)).ravel()
+    ok = (r >= 0) & (c >= 0)
+    return sp.csc_matrix((blocks.ravel()[ok], (r[ok], c[ok])), shape=(2 * n, 2 * n))
+
+
+class _Pattern:
+    """Sparsity pattern of the surface's (2n,2n) Hessian, built once; ``matrix(vals)`` sums per-face blocks."""
+
+    def __init__(self, F: np.ndarray, n: int):
+        m = len(F)
+        ids = np.concatenate([F, F + n], axis=1)  # (m,6), same order as sd_newton_blocks
+        rows = np.repeat(ids, 6, axis=1).ravel()
+        cols = np.tile(ids, (1, 6)).ravel()
+        key = cols.astype(np.int64) * (2 * n) + rows
+        uniq, self.inv = np.unique(key, return_inverse=True)
+        self.shape = (2 * n, 2 * n)
+        c, r = np.divmod(uniq, 2 * n)
+        self.indices = r.astype(np.int32)
+        self.indptr = np.searchsorted(c, np.arange(2 * n + 1)).astype(np.int32)
+        self.nnz = len(uniq)
+        del m
+
+    def matrix(self, vals: np.ndarray) -> sp.csc_matrix:
+        data = np.bincount(self.inv, weights=vals.ravel(), minlength=self.nnz)
+        return sp.csc_matrix((data, self.indices, self.indptr), shape=self.shape)
 
 
 #: Newton directions are solved to this relative residual by conjugate gradients preconditioned with the last
@@ -351,7 +316,7 @@ def _newton_direction(H: sp.csc_matrix, rhs: np.ndarray, fac: Factor | None, bac
                       ) -> tuple[np.ndarray, Factor, int]:
     """Solve H dx = rhs, reusing a stale factorization as a preconditioner while it still works (lagged Newton).
 
-    Factorizing the (2N,2N) Hessian dominates an iteration; consecutive Hessians differ little, so a few
+    Factorizing the (2n,2n) Hessian dominates an iteration; consecutive Hessians differ little, so a few
     preconditioned CG steps with the previous factor usually reach PCG_RTOL for a fraction of the cost.
     Returns (dx, the factor used, 1 if it was refactorized else 0).
     """
@@ -364,98 +329,82 @@ def _newton_direction(H: sp.csc_matrix, rhs: np.ndarray, fac: Factor | None, bac
     return fac.solve(rhs), fac, 1
 
 
-def polish(uv: np.ndarray, disk: Disk, g_surf: np.ndarray, area: np.ndarray, *, max_iters: int = 200,
-           tol: float = 1e-6, backend: str = "auto", check_crossings: bool = True, method: str = "newton",
-           bar=None) -> tuple[np.ndarray, dict]:
-    """Minimize the symmetric Dirichlet energy of the surface faces from a flip-free ``uv`` (N,2), flip-free.
+def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray], *,
+           max_iters: int = 200, tol: float = 1e-6, backend: str = "auto", bar=None) -> tuple[np.ndarray, dict]:
+    """Minimize the symmetric Dirichlet energy Σ A_f Ψ(J_f) from a bijective layout ``uv`` (n,2), keeping it bijective.
 
-    Surface face f weighs its 3D area; fan faces are scaffold elements measured against their shape at the start
-    of each iteration. Stops when the relative energy decrease of an iteration is below ``tol``.
+    Projected Newton on the surface energy plus a scaffold energy (:func:`build_scaffold`, rebuilt around the
+    current layout at every iteration and measured against its own shape at its start, Jiang et al. 2017; each
+    scaffold triangle weighs up to ``SCAFFOLD_WEIGHT`` × the mean surface face, relaxed by ``SCAFFOLD_ADAPT``
+    after every uncut step). The line search starts at 0.9 × the largest step for which no surface or scaffold
+    triangle flips (Smith & Schaefer 2015) and halves it until the energy decreases. Converged when an uncut step
+    (≥ half the Newton step) lowers the surface energy by less than ``tol`` of it; gives up after
+    ``STALL_ITERS`` barrier-limited steps in a row that gain less. g (m,3,2): hat gradients of the rest triangles;
+    area (m,): their areas; loops: boundary loops, outer first. Returns the layout (n,2) and a JSON-able report.
     """
     t0 = time.perf_counter()
-    F = disk.F
-    N = len(uv)
-    m = disk.m
-    pat = _Pattern(F, N)
-    wsum = area.sum()
-    w_surf = area / wsum
-    fan_w = FAN_WEIGHT * float(area.mean()) / wsum
+    n = len(uv)
+    pat = _Pattern(F, n)
+    w_surf = area / area.sum()
+    w_scaf = w_max = SCAFFOLD_WEIGHT * float(w_surf.mean())
+    w_min = SCAFFOLD_WEIGHT_MIN * w_max
     x = uv.copy()
-    hist = []
-    crossing_rejects = 0
-    fac, refactorizations = None, 0
-    it = 0
-    converged = False
+    hist: list[float] = []
+    fac, refactorizations, it, converged, stop = None, 0, 0, False, "iteration cap"
+    small, full_step = 0, 0.5  # a step of at least half the Newton step counts as uncut
     while it < max_iters:
         it += 1
-        if len(F) > m:
-            Pf = x[F[m:]]
-            g_fan = hat_gradients(Pf)
-            g = np.concatenate([g_surf, g_fan])
-            w = np.concatenate([w_surf, np.full(len(F) - m, fan_w)])
-        else:
-            g, w = g_surf, w_surf
-        J = jacobians(x, F, g)
-        E0, _ = symmetric_dirichlet(J, w)
-        Es0 = symmetric_dirichlet(J[:m], w_surf)[0]
-        hist.append(Es0)
-        if method == "newton":
-            # projected Newton: per-face Hessian in J, projected to PSD, chained through J = Σ_i uv_i ⊗ g_i
-            gJ, HJ = _sd_newton_blocks(J, w)
-            Bm = np.zeros((len(F), 4, 2, 3))  # d vec(J)[(a,c)] / d uv[(a',i)]
-            for a in range(2):
-                Bm[:, 2 * a : 2 * a + 2, a, :] = g.transpose(0, 2, 1)
-            Bm = Bm.reshape(len(F), 4, 6)
-            blocks = np.matmul(np.matmul(Bm.transpose(0, 2, 1), HJ), Bm)
-            H = pat.matrix(blocks)
-            gr = _scatter(gJ, F, g, N)
-            rhs = -np.concatenate([gr[:, 0], gr[:, 1]])
-            lam = 1e-9 * float(H.diagonal().mean())
-            H = H + sp.identity(2 * N, format="csc") * lam
-            dx, fac, fresh = _newton_direction(H, rhs, fac, backend)
-            refactorizations += fresh
-            d = np.column_stack([dx[:N], dx[N:]])
-        else:
-            R, W2 = _polar_weights(J)
-            # SLIM blocks: H[(a,i),(b,j)] = w_f W2[a,b] (g_i·g_j); rhs[(a,i)] = w_f (W2 R g_iᵀ)[a]
-            K = np.einsum("mic,mjc->mij", g, g)
-            blocks = w[:, None, None, None, None] * W2[:, :, None, :, None] * K[:, None, :, None, :]
-            H = pat.matrix(blocks.reshape(len(F), 36))
-            rhsf = w[:, None, None] * np.einsum("mab,mbc,mic->mai", W2, R, g)  # (m,2,3)
-            rhs = np.zeros(2 * N)
-            rhs[:N] = np.bincount(F.ravel(), weights=rhsf[:, 0].ravel(), minlength=N)
-            rhs[N:] = np.bincount(F.ravel(), weights=rhsf[:, 1].ravel(), minlength=N)
-            lam = 1e-9 * float(H.diagonal().mean())
-            xv = np.concatenate([x[:, 0], x[:, 1]])
-            H = H + sp.identity(2 * N, format="csc") * lam
-            xn = Factor(H, backend).solve(rhs + lam * xv)
-            d = np.column_stack([xn[:N] - x[:, 0], xn[N:] - x[:, 1]])
-        D = jacobians(d, F, g)
-        t = min(1.0, 0.9 * max_step(J, D))
-        accepted = False
-        for _ in range(40):
-            xt = x + t * d
-            E1, _ = symmetric_dirichlet(J + t * D, w)
-            if E1 < E0:
-                if check_crossings and _outer_crossings(xt, disk) > 0:
-                    crossing_rejects += 1
-                else:
-                    accepted = True
-                    break
-            t *= 0.5
-        if not accepted:
+        try:
+            sc = build_scaffold(x, loops)
+        except ValueError as exc:
+            stop = f"scaffold failed: {exc}"
             break
-        x = xt
+        xs = np.vstack([x, sc.box])
+        gs = hat_gradients(xs[sc.F])
+        ws = np.full(len(sc.F), w_scaf)
+        J, Js = jacobians(x, F, g), jacobians(xs, sc.F, gs)
+        E0 = symmetric_dirichlet(J, w_surf)[0]
+        hist.append(E0)
+        E0 += symmetric_dirichlet(Js, ws)[0]
+        gJ, blocks = sd_newton_blocks(J, g, w_surf)
+        gJs, blocks_s = sd_newton_blocks(Js, gs, ws)
+        H = pat.matrix(blocks) + _scaffold_matrix(sc.F, blocks_s, n)
+        gr = _scatter(gJ, F, g, n) + _scatter(gJs, sc.F, gs, n + 4)[:n]
+        rhs = -np.concatenate([gr[:, 0], gr[:, 1]])
+        H = H + sp.identity(2 * n, format="csc") * (1e-9 * float(H.diagonal().mean()))  # rigid rotation
+        dx, fac, fresh = _newton_direction(H, rhs, fac, backend)
+        refactorizations += fresh
+        d = np.column_stack([dx[:n], dx[n:]])
+        D, Ds = jacobians(d, F, g), jacobians(np.vstack([d, np.zeros((4, 2))]), sc.F, gs)
+        t = min(1.0, 0.9 * min(max_step(J, D), max_step(Js, Ds)))
+        for _ in range(40):
+            E1 = symmetric_dirichlet(J + t * D, w_surf)[0] + symmetric_dirichlet(Js + t * Ds, ws)[0]
+            if E1 < E0:
+                break
+            t *= 0.5
+        else:
+            stop = "no descent"
+            break
+        x = x + t * d
         if bar is not None:
             bar.update(1)
-        Es1 = symmetric_dirichlet(jacobians(x[: disk.n], F[:m], g_surf), w_surf)[0]
-        if (Es0 - Es1) / Es0 < tol:
-            hist.append(Es1)
-            converged = True
-            break
-    info = {"iterations": it, "converged": converged, "energy_start": float(hist[0] / 4 if hist else np.nan),
-            "energy_end": float(hist[-1] / 4 if hist else np.nan), "crossing_rejected_steps": crossing_rejects,
-            "factorizations": refactorizations,
+        # a stiff scaffold keeps boundaries apart while they move a lot, but it acts like a proximal term on
+        # boundary vertices (thin scaffold triangles): relax it while Newton steps go through uncut
+        w_scaf = max(w_scaf / SCAFFOLD_ADAPT, w_min) if t >= full_step else min(w_scaf * SCAFFOLD_ADAPT, w_max)
+        Es1 = symmetric_dirichlet(jacobians(x, F, g), w_surf)[0]
+        if (hist[-1] - Es1) / hist[-1] < tol:
+            # a tiny decrease means convergence only if the Newton step was not cut short by the flip barrier;
+            # cut-short steps usually recover once the scaffold is re-triangulated, so only a run of them stops
+            small += 1
+            if t >= full_step or small >= STALL_ITERS:
+                hist.append(Es1)
+                converged, stop = t >= full_step, ("converged" if t >= full_step else "stalled at the barrier")
+                break
+        else:
+            small = 0
+    info = {"iterations": it, "converged": converged, "stop": stop,
+            "energy_start": float(hist[0] / 4 if hist else np.nan),
+            "energy_end": float(hist[-1] / 4 if hist else np.nan), "factorizations": refactorizations,
             "seconds": round(time.perf_counter() - t0, 3)}
     return x, info
 
@@ -470,12 +419,19 @@ def surface_gradients(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndar
     return hat_gradients(local_triangles(lengths)), intrinsic_areas(lengths)
 
 
+def _is_bijective(uv: np.ndarray, F: np.ndarray, g: np.ndarray) -> tuple[int, int]:
+    """(flipped faces, boundary crossings) of a layout; crossings are only counted when nothing is flipped."""
+    flips = int((_det(jacobians(uv, F, g)) <= 0).sum())
+    return flips, (int(metrics.boundary_crossings(uv, F)) if flips == 0 else -1)
+
+
 def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=None,
            conformal: Callable[[], np.ndarray] | None = None) -> tuple[np.ndarray, dict]:
-    """Make the MDS layout ``uv`` (n,2) of (V (n,3), F (m,3)) flip-free and near-isometric (true scale).
+    """Make the MDS layout ``uv`` (n,2) of (V (n,3), F (m,3)) bijective and near-isometric (true scale).
 
-    ``conformal``, if given, returns the LSCM layout of (V, F) for the fallback start (already computed by the
-    fill decision, so it is not computed twice).
+    Start: the MDS layout if it is bijective (no flipped face, no crossing of any boundary loop), else the LSCM
+    layout (``conformal()`` if given — the fill decision already computed it — else computed here) if it is,
+    else the Tutte embedding of the mesh with its holes fanned. Then :func:`polish` with the scaffold.
 
     Returns the refined layout (n,2) and a JSON-able report of what was done.
     """
@@ -485,52 +441,36 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=Non
     tol = float(getattr(opts, "refine_tol", 1e-6))
     n = len(V)
     disk = build_disk(V, F)
-    g_surf, area = surface_gradients(V, F)
-    report: dict = {"method": "sd", "holes_fanned": len(disk.holes)}
+    g, area = surface_gradients(V, F)
+    report: dict = {"method": "sd", "holes": len(disk.holes)}
 
-    x = _fan_centres(np.asarray(uv, dtype=np.float64), disk)
-    g_all = np.concatenate([g_surf, hat_gradients(disk.fan_rest)]) if disk.holes else g_surf
-    a_all = np.concatenate([area, intrinsic_areas(_tri_lengths(disk.fan_rest))]) if disk.holes else area
-    d = _det(jacobians(x, disk.F, g_all))
-    report["start"] = {"flips": int((d[: disk.m] <= 0).sum()), "fan_flips": int((d[disk.m:] <= 0).sum())}
+    x = np.asarray(uv, dtype=np.float64)
+    flips, cross = _is_bijective(x, F, g)
+    report["start"] = {"flips": flips, "crossings": cross}
     start = "mds"
-    if (d <= 0).any() and (d <= 0).sum() <= UNTANGLE_MAX_FRACTION * len(d):
-        bar = progress.bar(40, "untangle") if progress is not None else None
+    if flips or cross:
+        x = np.array(conformal() if conformal is not None else conformal_start(V, F, disk))
+        flips, cross = _is_bijective(x, F, g)
+        report["start"].update(lscm_flips=flips, lscm_crossings=cross)
+        start = "lscm"
+        if flips or cross:
+            x, start = tutte(V, disk, backend)[:n], "tutte"
+    report["start"]["layout"] = start
+    bar = progress.bar(max_iters, "polish") if progress is not None else None
+    # One BLAS thread: the polish's vector work is small, and OpenBLAS threads on it cost 10-60% on 2 cores
+    # (2.2 s vs 2.5 s on camelhead alone, 6.2 s with another process busy; BENCHMARKS.md).
+    with threadpool_limits(1, user_api="blas"):
         try:
-            x, uinfo = untangle(x, disk.F, g_all, a_all, bar=bar)
+            x, pinfo = polish(x, F, g, area, [disk.outer, *disk.holes], max_iters=max_iters, tol=tol,
+                              backend=backend, bar=bar)
         finally:
             if bar is not None:
                 bar.close()
-        report["untangle"] = uinfo
-        start = "mds+untangle"
-    d = _det(jacobians(x, disk.F, g_all))
-    cross = _outer_crossings(x, disk) if (d > 0).all() else -1
-    report["start"]["crossings_before_polish"] = cross
-    if not (d > 0).all() or cross != 0:
-        xl = _fan_centres(conformal() if conformal is not None else conformal_start(V, F, disk), disk)
-        dl = _det(jacobians(xl, disk.F, g_all))
-        report["start"]["lscm_flips"] = int((dl <= 0).sum())
-        if (dl > 0).all() and _outer_crossings(xl, disk) == 0:
-            x, start = xl, "lscm"
-        else:
-            x, start = tutte(V, disk, backend), "tutte"
-    report["start"]["layout"] = start
-    bar = progress.bar(max_iters, "polish") if progress is not None else None
-    try:
-        x, pinfo = polish(x, disk, g_surf, area, max_iters=max_iters, tol=tol, backend=backend, bar=bar)
-    finally:
-        if bar is not None:
-            bar.close()
-    pinfo["method"] = "projected-newton"
+    pinfo["method"] = "projected-newton + scaffold"
     report["polish"] = pinfo
-    uvn = x[:n]
-    report["flips"] = int((_det(jacobians(uvn, F, g_surf)) <= 0).sum())
-    report["boundary_crossings"] = int(metrics.boundary_crossings(uvn, F))
+    report["flips"], report["boundary_crossings"] = _is_bijective(x, F, g)
+    if report["flips"]:
+        report["boundary_crossings"] = int(metrics.boundary_crossings(x, F))
     report["bijective"] = report["flips"] == 0 and report["boundary_crossings"] == 0
     report["seconds"] = round(time.perf_counter() - t0, 3)
-    return uvn, report
-
-
-def _tri_lengths(P: np.ndarray) -> np.ndarray:
-    return np.stack([np.linalg.norm(P[:, 2] - P[:, 1], axis=1), np.linalg.norm(P[:, 2] - P[:, 0], axis=1),
-                     np.linalg.norm(P[:, 1] - P[:, 0], axis=1)], axis=1)
+    return x, report
