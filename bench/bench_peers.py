@@ -2,8 +2,11 @@
 
 Usage: ``python bench/bench_peers.py [name ...]`` (names of ../shared/meshes files or generated shapes).
 Columns: flips, boundary crossings, iso mean/p95, conformal mean, area mean (``metrics.summary``; these are
-scale-normalized), true-scale layout error (``shapes.layout_error``, only where ``uv_true`` is known; maps that
-are not at true scale are first scaled by ``uv_scale`` and marked ``*``), seconds (wall).
+scale-normalized), SD = true-scale symmetric Dirichlet energy per area / 4 (1 = isometry; the energy SLIM and our
+polish minimize; "–" where a face is flipped), true-scale layout error (``shapes.layout_error``, only where
+``uv_true`` is known; maps that are not at true scale are first scaled by ``uv_scale`` and marked ``*``), seconds
+(wall), notes (our start layout and polish iterations). After each table: the best flip-free and the best bijective
+peer, and SLIM's time over ours.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ import igl
 import numpy as np
 from common import SHARED
 
-from heatparam import io, metrics, pipeline, shapes
+from heatparam import io, metrics, pipeline, refine, shapes
 
 MESHES = ["camelhead.off", "halftunnel.off", "beetle.off", "woody.obj", "bump-domain.obj"]
 SHAPES = ["cylinder_patch", "cylinder_with_holes", "cone_s_strip", "curved_cap_with_holes"]
@@ -61,15 +64,28 @@ def slim(V, F, uv0, iters=100):
     return np.asarray(igl.slim_solve(data, iters))[:, :2]
 
 
-def row(method, V, F, uv, seconds, uv_true, true_scale):
+def sd_energy(V, F, uv) -> float:
+    """Σ A_f (|J|² + |J⁻¹|²) / (4 Σ A_f) at true scale; nan if any face is flipped."""
+    g, area = refine.surface_gradients(V, F)
+    J = refine.jacobians(uv, F, g)
+    if (refine._det(J) <= 0).any():
+        return float("nan")
+    return refine.symmetric_dirichlet(J, area / area.sum())[0] / 4
+
+
+def row(method, V, F, uv, seconds, uv_true, true_scale, notes=""):
     s = metrics.summary(V, F, uv)
     if uv_true is not None:
         mark = "" if true_scale else "*"
         le = f"{shapes.layout_error(uv * (1.0 if true_scale else s['uv_scale']), uv_true):.2e}{mark}"
     else:
         le = "–"
-    return (f"| {method} | {s['flips']} | {s['boundary_crossings']} | {s['iso_mean']:.4f} | {s['iso_p95']:.4f} | "
-            f"{s['conformal_mean']:.4f} | {s['area_mean']:.4f} | {le} | {seconds:.2f} |")
+    sd = sd_energy(V, F, uv) if true_scale else float("nan")
+    line = (f"| {method} | {s['flips']} | {s['boundary_crossings']} | {s['iso_mean']:.4f} | {s['iso_p95']:.4f} | "
+            f"{s['conformal_mean']:.4f} | {s['area_mean']:.4f} | {'–' if np.isnan(sd) else f'{sd:.5f}'} | {le} | "
+            f"{seconds:.2f} | {notes} |")
+    return line, {"method": method, "flips": s["flips"], "crossings": s["boundary_crossings"],
+                  "iso": s["iso_mean"], "seconds": seconds}
 
 
 def timed(fn, *a):
@@ -78,21 +94,34 @@ def timed(fn, *a):
     return out, time.perf_counter() - t
 
 
+def _notes(rep: dict) -> str:
+    r = rep["method"]["refine"]
+    if "polish" not in r:
+        return ""
+    return f"start {r['start']['layout']}, {r['polish']['iterations']} it, {r['polish']['stop']}"
+
+
 def bench(name: str) -> list[str]:
     V, F, uvt = load(name)
     out = [f"\n### {name} ({len(V)} vertices, {len(F)} faces)\n",
-           "| method | flips | crossings | iso mean | iso p95 | conformal mean | area mean | layout err | s |",
-           "|---|---|---|---|---|---|---|---|---|"]
+           "| method | flips | crossings | iso mean | iso p95 | conformal mean | area mean | SD | layout err | s "
+           "| notes |",
+           "|---|---|---|---|---|---|---|---|---|---|---|"]
+    rows = []
     for label, kw in (("heatparam raw (refine none, fill none)", {"refine": "none", "fill": "none"}),
                       ("heatparam filled (fill poisson, refine none)", {"refine": "none", "fill": "poisson"}),
                       ("heatparam default", {})):
         try:
             (uv, rep), dt = timed(lambda kw=kw: pipeline.parameterize(V, F, **kw))
-            out.append(row(label, V, F, uv, dt, uvt, True))
-        except Exception as exc:  # the fill may not exist yet
-            out.append(f"| {label} | n/a ({type(exc).__name__}) |  |  |  |  |  |  |  |")
+            line, r = row(label, V, F, uv, dt, uvt, True, _notes(rep))
+            out.append(line)
+            rows.append(r)
+        except Exception as exc:  # e.g. --fill poisson is refused on planar meshes
+            out.append(f"| {label} | n/a ({type(exc).__name__}) |  |  |  |  |  |  |  |  |  |")
     uv_l, t_l = timed(lscm, V, F)
-    out.append(row("libigl LSCM (2 fixed vertices)", V, F, uv_l, t_l, uvt, False))
+    line, r = row("libigl LSCM (2 fixed vertices)", V, F, uv_l, t_l, uvt, False)
+    out.append(line)
+    rows.append(r)
     uv_t, t_t = timed(tutte, V, F)
     # ARAP/SLIM start from LSCM scaled to true area (they are true-scale energies).
     s_l = metrics.summary(V, F, uv_l)["uv_scale"]
@@ -101,10 +130,34 @@ def bench(name: str) -> list[str]:
             label = f"libigl {peer} 100 it from {start}"
             try:
                 uv, dt = timed(fn, V, F, uv0)
-                out.append(row(label, V, F, uv, dt + t0, uvt, True))
+                line, r = row(label, V, F, uv, dt + t0, uvt, True)
+                out.append(line)
+                rows.append(r)
             except Exception as exc:  # e.g. arap_precomputation fails on some meshes
-                out.append(f"| {label} | failed ({type(exc).__name__}: {exc}) |  |  |  |  |  |  |  |")
+                out.append(f"| {label} | failed ({type(exc).__name__}: {exc}) |  |  |  |  |  |  |  |  |  |")
+    out.append("")
+    out.append(summary_line(rows))
     return out
+
+
+def summary_line(rows: list[dict]) -> str:
+    """Our default against the best flip-free and the best bijective ARAP/SLIM/LSCM peer, and SLIM's time ratio."""
+    ours = next(r for r in rows if r["method"] == "heatparam default")
+    peers = [r for r in rows if r["method"].startswith("libigl")]
+    flip_free = [r for r in peers if r["flips"] == 0 and not r["method"].startswith("libigl LSCM")]
+    bijective = [r for r in peers if r["flips"] == 0 and r["crossings"] == 0]
+    slim = [r["seconds"] for r in peers if "SLIM" in r["method"]]
+
+    def best(rs):
+        if not rs:
+            return "none"
+        b = min(rs, key=lambda r: r["iso"])
+        return f"{b['method'][7:]} {b['iso']:.4f} ({b['crossings']} crossings)"
+
+    lo, hi = min(slim) / ours["seconds"], max(slim) / ours["seconds"]
+    return (f"**heatparam default** {ours['iso']:.4f}, {ours['flips']} flips, {ours['crossings']} crossings, "
+            f"{ours['seconds']:.2f} s. Best flip-free ARAP/SLIM: {best(flip_free)}. Best bijective peer: "
+            f"{best(bijective)}. SLIM time / ours: {lo:.1f}–{hi:.1f}×.")
 
 
 def main(argv: list[str]) -> None:

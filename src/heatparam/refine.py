@@ -388,20 +388,24 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
         x = x + t * d
         if bar is not None:
             bar.update(1)
-        # a stiff scaffold keeps boundaries apart while they move a lot, but it acts like a proximal term on
-        # boundary vertices (thin scaffold triangles): relax it while Newton steps go through uncut
-        w_scaf = max(w_scaf / SCAFFOLD_ADAPT, w_min) if t >= full_step else min(w_scaf * SCAFFOLD_ADAPT, w_max)
         Es1 = symmetric_dirichlet(jacobians(x, F, g), w_surf)[0]
         if (hist[-1] - Es1) / hist[-1] < tol:
-            # a tiny decrease means convergence only if the Newton step was not cut short by the flip barrier;
-            # cut-short steps usually recover once the scaffold is re-triangulated, so only a run of them stops
+            # a tiny decrease means convergence only if the Newton step was not cut short by the flip barrier and
+            # the scaffold was already at its lightest (a stiff scaffold slows boundary vertices down); cut-short
+            # steps usually recover once the scaffold is re-triangulated, so only a run of them stops
             small += 1
+            if t >= full_step and w_scaf > w_min:
+                w_scaf = w_min
+                continue
             if t >= full_step or small >= STALL_ITERS:
                 hist.append(Es1)
                 converged, stop = t >= full_step, ("converged" if t >= full_step else "stalled at the barrier")
                 break
         else:
             small = 0
+        # a stiff scaffold keeps boundaries apart while they move a lot, but it acts like a proximal term on
+        # boundary vertices (thin scaffold triangles): relax it while Newton steps go through uncut
+        w_scaf = max(w_scaf / SCAFFOLD_ADAPT, w_min) if t >= full_step else min(w_scaf * SCAFFOLD_ADAPT, w_max)
     info = {"iterations": it, "converged": converged, "stop": stop,
             "energy_start": float(hist[0] / 4 if hist else np.nan),
             "energy_end": float(hist[-1] / 4 if hist else np.nan), "factorizations": refactorizations,
