@@ -5,6 +5,11 @@ OBJ, parameterize with default settings, write the UV OBJ), each run in a fresh 
 Peers run in the same process run on the same meshes. Prints markdown tables; results go in BENCHMARKS.md.
 
 Run: python bench/bench_scale.py [--sizes 10000 50000 200000] [--slim-max 60000]   (~5-10 min on 2 cores)
+
+Shorter runs (issue 4 follow-up; timings on a shared machine are noisy, so these repeat and print the median and
+the spread):
+  python bench/bench_scale.py --geodesics-only --repeats 5          per-source geodesic time (beetle, camelhead)
+  python bench/bench_scale.py --sizes 200000 --raw-only --repeats 3 --geodesics-mesh   stages at ~180k, --refine none
 """
 
 from __future__ import annotations
@@ -73,35 +78,75 @@ p = json.load(open(sys.argv[1]))
 V, F = load_mesh(p["mesh"])
 n = len(V)
 src = np.linspace(0, n - 1, p["sources"]).astype(np.int64)
+reps = p.get("repeats", 1)
 out = {}
 t0 = time.perf_counter()
 op = build_operators(V, F)
 solver = HeatGeodesics(op, time_step(op))
 pre = time.perf_counter() - t0
 solver.distances(src[:8])  # warm-up: threads, first touch of the scratch buffers
-t1 = time.perf_counter()
-solver.distances(src)
-t2 = time.perf_counter()
-out["heatparam"] = {"precompute": pre, "per_source_ms": (t2 - t1) / len(src) * 1e3}
+per = []
+for _ in range(reps):
+    t1 = time.perf_counter()
+    solver.distances(src)
+    per.append((time.perf_counter() - t1) / len(src) * 1e3)
+out["heatparam"] = {"precompute": pre, "per_source_ms": per, "block": solver.block, "backend": solver.backend}
 import potpourri3d as pp3d
 t0 = time.perf_counter()
 s = pp3d.MeshHeatMethodDistanceSolver(V, F)
-t1 = time.perf_counter()
-for i in src[:32]:
-    s.compute_distance(int(i))
-t2 = time.perf_counter()
-out["potpourri3d"] = {"precompute": t1 - t0, "per_source_ms": (t2 - t1) / 32 * 1e3}
+pre = time.perf_counter() - t0
+per = []
+for _ in range(reps):
+    t1 = time.perf_counter()
+    for i in src[:32]:
+        s.compute_distance(int(i))
+    per.append((time.perf_counter() - t1) / 32 * 1e3)
+out["potpourri3d"] = {"precompute": pre, "per_source_ms": per}
 t0 = time.perf_counter()
 data = igl.HeatGeodesicsData()
 igl.heat_geodesics_precompute(V, F, data)
-t1 = time.perf_counter()
-for i in src[:32]:
-    igl.heat_geodesics_solve(data, np.array([i]))
-t2 = time.perf_counter()
-out["libigl"] = {"precompute": t1 - t0, "per_source_ms": (t2 - t1) / 32 * 1e3}
+pre = time.perf_counter() - t0
+per = []
+for _ in range(reps):
+    t1 = time.perf_counter()
+    for i in src[:32]:
+        igl.heat_geodesics_solve(data, np.array([i]))
+    per.append((time.perf_counter() - t1) / 32 * 1e3)
+out["libigl"] = {"precompute": pre, "per_source_ms": per}
 out["n"] = n
 print(json.dumps(out))
 """
+
+
+def _spread(values: list[float], fmt: str = ".2f") -> str:
+    """'median [min-max]' of repeated measurements (just the value for one)."""
+    if len(values) == 1:
+        return format(values[0], fmt)
+    return f"{format(float(np.median(values)), fmt)} [{format(min(values), fmt)}-{format(max(values), fmt)}]"
+
+
+def geodesics_table(meshes: list[str], repeats: int, processes: int) -> None:
+    """Per-source heat-method geodesic time: heatparam batched, peers one source per call."""
+    for mesh in meshes:
+        print(f"\n## Heat-method geodesics per source on {Path(mesh).name}\n")
+        runs = [run_isolated(GEODESICS, {"mesh": mesh, "sources": 256, "repeats": repeats}) for _ in range(processes)]
+        errors = [r["error"] for r in runs if "error" in r]
+        if errors:
+            print(f"error: {errors[0]}")
+            continue
+        hp = runs[0]["heatparam"]
+        print(f"{runs[0]['n']} vertices; {processes} fresh process(es) × {repeats} timed run(s) each: median "
+              f"[min-max] over all {processes * repeats}; heatparam {hp['backend']}, {hp['block']} columns per "
+              "batch\n")
+        print("| solver | precompute s | per source ms | ratio to heatparam (medians) |")
+        print("|---|---|---|---|")
+        med = {}
+        for name in ("heatparam", "potpourri3d", "libigl"):
+            per = [x for r in runs for x in r[name]["per_source_ms"]]
+            pre = [r[name]["precompute"] for r in runs]
+            med[name] = float(np.median(per))
+            print(f"| {name} | {_spread(pre)} | {_spread(per)} | {med[name] / med['heatparam']:.1f} |")
+        print("\nheatparam: 256 sources in batches (multi-column solves); peers: one source per call (32 calls).")
 
 
 def main() -> None:
@@ -109,14 +154,44 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="+", default=[10000, 50000, 200000])
     ap.add_argument("--slim-max", type=int, default=20000, help="largest mesh on which SLIM is run")
     ap.add_argument("--slim-iters", type=int, default=100)
-    ap.add_argument("--geodesics-mesh", default=str(SHARED / "beetle.off"),
-                    help="mesh for the per-source geodesics comparison (~25k vertices; default beetle.off, 19.9k)")
+    ap.add_argument("--geodesics-mesh", nargs="*", default=[str(SHARED / "beetle.off"), str(SHARED / "camelhead.off")],
+                    help="meshes for the per-source geodesics comparison (beetle.off: 19.9k vertices); none: skip")
+    ap.add_argument("--geodesics-only", action="store_true", help="only the per-source geodesics comparison")
+    ap.add_argument("--raw-only", action="store_true",
+                    help="scale table: only heatparam --refine none (and LSCM for the ratio), no default run, no SLIM")
+    ap.add_argument("--repeats", type=int, default=1,
+                    help="fresh-process runs of each heatparam row, and timed runs per geodesics process")
+    ap.add_argument("--geodesics-processes", type=int, default=1, help="fresh processes per geodesics mesh")
     args = ap.parse_args()
     from heatparam.io import save_uv_obj
 
     print(f"# Scale benchmark — {datetime.date.today()} — {machine()}\n")
+    if not args.geodesics_only:
+        scale_table(args, save_uv_obj)
+    geodesics_table(args.geodesics_mesh, args.repeats, args.geodesics_processes)
+
+
+STAGES = ("load", "validate", "fill decision", "operators", "factorize", "geodesics", "mds", "refine", "metrics",
+          "save", "end_to_end")
+
+
+def _heatparam_rows(path: Path, out: Path, options: dict, repeats: int) -> dict:
+    """Run heatparam ``repeats`` times in fresh processes: the first run's fields, timings as lists."""
+    runs = [run_isolated(HEATPARAM, {"mesh": str(path), "out": str(out), "options": options}) for _ in range(repeats)]
+    bad = [r for r in runs if "error" in r]
+    if bad:
+        return bad[0]
+    r = dict(runs[0])
+    r["times"] = {k: [x["end_to_end"] if k == "end_to_end" else x.get(k, x["stages"].get(k)) for x in runs]
+                  for k in STAGES if k in r or k in r["stages"]}
+    r["peak_mb"] = max(x["peak_mb"] for x in runs)
+    return r
+
+
+def scale_table(args, save_uv_obj) -> None:
     print("| mesh | n | tool | seconds | ratio to LSCM | peak RSS MB | flips | crossings | iso mean | notes |")
     print("|---|---|---|---|---|---|---|---|---|---|")
+    stage_rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for size in args.sizes:
             V, F = upsampled_camelhead(size)
@@ -124,39 +199,40 @@ def main() -> None:
             save_uv_obj(path, V, F, np.zeros((len(V), 2)))
             lscm = run_isolated(PEER, {"mesh": str(path), "peer": "lscm"})
             rows = [("libigl LSCM", lscm, "")]
-            hp = run_isolated(HEATPARAM, {"mesh": str(path), "out": str(Path(tmp) / "o.obj"), "options": {}})
-            raw = run_isolated(HEATPARAM, {"mesh": str(path), "out": str(Path(tmp) / "o.obj"),
-                                           "options": {"refine": "none"}})
-            rows[:0] = [("heatparam default (end to end, I/O incl.)", hp, ""),
-                        ("heatparam --refine none (end to end, I/O incl.)", raw, "")]
-            if len(V) <= args.slim_max:
-                rows.append((f"libigl SLIM ({args.slim_iters} it, Tutte start)",
-                             run_isolated(PEER, {"mesh": str(path), "peer": "slim", "iters": args.slim_iters}), ""))
-            else:
-                rows.append(("libigl SLIM", {"error": f"skipped above {args.slim_max} vertices"}, ""))
+            out = Path(tmp) / "o.obj"
+            raw = _heatparam_rows(path, out, {"refine": "none"}, args.repeats)
+            rows[:0] = [("heatparam --refine none (end to end, I/O incl.)", raw, "")]
+            stage_rows.append((len(V), raw))
+            if not args.raw_only:
+                hp = _heatparam_rows(path, out, {}, args.repeats)
+                rows[:0] = [("heatparam default (end to end, I/O incl.)", hp, "")]
+                if len(V) <= args.slim_max:
+                    rows.append((f"libigl SLIM ({args.slim_iters} it, Tutte start)",
+                                 run_isolated(PEER, {"mesh": str(path), "peer": "slim", "iters": args.slim_iters}),
+                                 ""))
+                else:
+                    rows.append(("libigl SLIM", {"error": f"skipped above {args.slim_max} vertices"}, ""))
             for name, r, note in rows:
                 if "error" in r:
                     print(f"| camelhead↑ | {len(V)} | {name} | — | — | — | — | — | — | {r['error']} |")
                     continue
-                sec = r.get("end_to_end", r.get("seconds"))
+                sec = float(np.median(r["times"]["end_to_end"])) if "times" in r else r["seconds"]
                 ratio = sec / lscm["seconds"] if "seconds" in lscm else float("nan")
                 if "stages" in r:
                     note = (f"{r['mode']} k={r['k']}, {r['backend']}; load {r['load']:.2f} s, save {r['save']:.2f} s; "
                             + ", ".join(f"{k} {v:.2f}" for k, v in r["stages"].items()))
+                    if len(r["times"]["end_to_end"]) > 1:
+                        note = f"median of {len(r['times']['end_to_end'])} runs; first run: " + note
                 print(f"| camelhead↑ | {len(V)} | {name} | {sec:.2f} | {ratio:.2f} | {r['peak_mb']:.0f} | {r['flips']} "
                       f"| {r['crossings']} | {r['iso']:.3f} | {note} |")
-        print(f"\n## Heat-method geodesics per source on {Path(args.geodesics_mesh).name}\n")
-        g = run_isolated(GEODESICS, {"mesh": args.geodesics_mesh, "sources": 256})
-        if "error" in g:
-            print(f"error: {g['error']}")
-            return
-        print(f"{g.pop('n')} vertices\n")
-        print("| solver | precompute s | per source ms | ratio to heatparam |")
-        print("|---|---|---|---|")
-        for name, r in g.items():
-            print(f"| {name} | {r['precompute']:.2f} | {r['per_source_ms']:.2f} | "
-                  f"{r['per_source_ms'] / g['heatparam']['per_source_ms']:.1f} |")
-        print("\nheatparam: 256 sources in batches (multi-column solves); peers: one source per call (32 calls).")
+    if args.repeats > 1:
+        print(f"\n### heatparam --refine none, seconds per stage: median [min-max] of {args.repeats} fresh processes\n")
+        print("| n | " + " | ".join(STAGES) + " |")
+        print("|---|" + "---|" * len(STAGES))
+        for n, r in stage_rows:
+            if "error" in r:
+                continue
+            print(f"| {n} | " + " | ".join(_spread(r["times"][k]) if k in r["times"] else "–" for k in STAGES) + " |")
 
 
 if __name__ == "__main__":

@@ -4,7 +4,10 @@ For the two systems heatparam factorizes (heat: t·L + B; Poisson: L with one ve
 upsampled to ~45k vertices, solve 64 right-hand sides at once. Also reports whether CHOLMOD through
 scikit-sparse is importable (it needs SuiteSparse headers to build; it is not a dependency).
 
-Run: python bench/bench_solvers.py [--target 45000]
+Second table: heat-method geodesic time per source on beetle.off by batch width (``heat.MAX_BLOCK``, columns
+per multi-column solve), the runs interleaved and repeated (median [min-max]), to choose MAX_BLOCK.
+
+Run: python bench/bench_solvers.py [--target 45000] [--blocks 8 16 32 64] [--repeats 5]
 """
 
 from __future__ import annotations
@@ -15,9 +18,11 @@ import importlib.util
 import time
 
 import numpy as np
-from common import machine, upsampled_camelhead
+from common import SHARED, machine, upsampled_camelhead
 
+from heatparam import heat
 from heatparam.heat import time_step
+from heatparam.io import load_mesh
 from heatparam.operators import build_operators
 from heatparam.solvers import Factor, available_backends
 
@@ -26,6 +31,9 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--target", type=int, default=45000)
     ap.add_argument("--rhs", type=int, default=64)
+    ap.add_argument("--blocks", type=int, nargs="*", default=[8, 16, 32, 64])
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--block-mesh", default=str(SHARED / "beetle.off"))
     args = ap.parse_args()
     V, F = upsampled_camelhead(args.target)
     op = build_operators(V, F)
@@ -51,6 +59,32 @@ def main() -> None:
             print(f"| {backend} | {name} | {t1 - t0:.3f} | {t3 - t2:.3f} | {per:.2f} | {res:.1e} |")
     sks = importlib.util.find_spec("sksparse") is not None
     print(f"\nscikit-sparse (CHOLMOD) importable here: {sks}")
+    if args.blocks:
+        block_table(args.block_mesh, args.blocks, args.repeats)
+
+
+def block_table(mesh: str, blocks: list[int], repeats: int, sources: int = 256) -> None:
+    """Per-source geodesic time by batch width; each repeat runs every width once (interleaved, same load)."""
+    V, F = load_mesh(mesh)
+    op = build_operators(V, F)
+    src = np.linspace(0, len(V) - 1, sources).astype(np.int64)
+    solvers = {}
+    for b in blocks:
+        solvers[b] = heat.HeatGeodesics(op, time_step(op), block_bytes=float("inf"))
+        solvers[b].block = b
+        solvers[b].distances(src[:8])  # warm-up
+    per = {b: [] for b in blocks}
+    for _ in range(repeats):
+        for b in blocks:
+            t0 = time.perf_counter()
+            solvers[b].distances(src)
+            per[b].append((time.perf_counter() - t0) / sources * 1e3)
+    print(f"\n## Geodesics per source by batch width — {mesh.split('/')[-1]}, {len(V)} vertices, {sources} sources, "
+          f"{repeats} interleaved repeats (backend {solvers[blocks[0]].backend}; default MAX_BLOCK {heat.MAX_BLOCK})\n")
+    print("| columns per batch | ms per source: median | min | max |")
+    print("|---|---|---|---|")
+    for b in blocks:
+        print(f"| {b} | {np.median(per[b]):.2f} | {min(per[b]):.2f} | {max(per[b]):.2f} |")
 
 
 if __name__ == "__main__":

@@ -94,3 +94,33 @@ def test_farthest_point_landmarks_deterministic_and_spread(disk):
     # covering radius: every vertex is within ~ the spacing of 20 points on a unit disk
     assert D1.min(axis=1).max() < 0.6
     assert np.allclose(D1, s.distances(lm1))
+
+
+def test_backends_agree_and_solve_into_out(disk):
+    """The pure-scipy fallback (SuperLU) gives the same distances as the default backend; ``out=`` is honoured."""
+    from heatparam.solvers import Factor, available_backends
+
+    V, F = disk
+    op = build_operators(V, F)
+    src = [0, 50, 300]
+    ref = HeatGeodesics(op, time_step(op), backend="scipy").distances(src)
+    for backend in available_backends():
+        D = HeatGeodesics(op, time_step(op), backend=backend).distances(src)
+        assert np.allclose(D, ref, rtol=0, atol=1e-10 * ref.max())
+        A = (op.L + op.B).tocsc()
+        f = Factor(A, backend)
+        b = np.random.default_rng(0).standard_normal((len(V), 3))
+        out = np.empty_like(b)
+        x = f.solve(b, out=out)
+        assert x is out and np.allclose(A @ out, b, atol=1e-9)
+        assert np.allclose(f.solve(b[:, 0]), out[:, 0])
+
+
+def test_euclidean_from_is_bit_identical_to_norm():
+    from heatparam.heat import _euclidean_from
+
+    rng = np.random.default_rng(5)
+    V = rng.standard_normal((3000, 3)) * 10.0 ** rng.integers(-6, 6, (3000, 1))
+    VT = np.ascontiguousarray(V.T)
+    for i in (0, 17, 2999):
+        assert np.array_equal(_euclidean_from(VT, i), np.linalg.norm(V - V[i], axis=1))

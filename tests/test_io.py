@@ -74,3 +74,44 @@ def test_uv_obj_without_vt_rejected(tmp_path):
     p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     with pytest.raises(HeatparamError, match="texture"):
         io.load_uv_obj(p)
+
+
+@pytest.mark.parametrize("body", [
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0.5\nf 1 2 3\nf 2 4 3\n",
+    "# c\nmtllib x.mtl\no part\nv 0 0 0\nv 1.5e-3 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nvn 0 0 1\nvn 0 0 1\n"
+    "vn 0 0 1\ng a\ns off\nusemtl m\nf 1/1/1 2/2/2 3/3/3\n",
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1//1 2//1 3//1\nf 2 4 3\n",
+])
+def test_plain_obj_fast_path_equals_meshio(tmp_path, body):
+    p = tmp_path / "m.obj"
+    p.write_text(body)
+    V1, F1 = io._load_obj_fast(p)
+    V2, F2 = io._load_meshio(p)
+    assert V1.dtype == V2.dtype and F1.dtype == F2.dtype
+    assert np.array_equal(V1, V2) and np.array_equal(F1, F2)
+
+
+@pytest.mark.parametrize("body", [
+    "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n",  # quad
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n",  # relative indices
+    "v 0 0 0 1\nv 1 0 0 1\nv 0 1 0 1\nf 1 2 3\n",  # homogeneous coordinate
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nl 1 2\nf 1 2 3\n",  # another statement
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n  f 1 2 3\n",  # odd whitespace
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1\n",  # fewer vt than v: meshio fails, trimesh reads it
+])
+def test_other_objs_left_to_meshio(tmp_path, body):
+    p = tmp_path / "m.obj"
+    p.write_text(body)
+    with pytest.raises(io._NotSimple):
+        io._load_obj_fast(p)
+
+
+def test_large_obj_fast_path_exact(tmp_path):
+    rng = np.random.default_rng(1)
+    V = rng.standard_normal((500, 3)) * 10.0 ** rng.integers(-8, 8, (500, 1))
+    F = rng.integers(0, 500, (900, 3))
+    p = tmp_path / "m.obj"
+    io.save_uv_obj(p, V, F, rng.random((500, 2)))
+    V2, F2 = io.load_mesh(p)
+    assert np.array_equal(V2, V) and np.array_equal(F2, F)
+    assert np.array_equal(V2, io._load_meshio(p)[0]) and np.array_equal(F2, io._load_meshio(p)[1])

@@ -21,8 +21,10 @@ TIME_STEPS = ("default", "paper")
 #: Bytes of scratch per source column per vertex in :meth:`HeatGeodesics.distances` (heat solution, gradient
 #: and unit field on ~2n faces × 2 components, right-hand side, distance): ~12 float64 per vertex.
 _BYTES_PER_COLUMN_VERTEX = 12 * 8
-#: Most columns per batch: larger batches stop paying off (cache), measured on beetle.off (20k vertices).
-MAX_BLOCK = 64
+#: Most columns per batch: time per source on beetle.off (20k vertices) is lowest at 8-16 columns and higher at
+#: 32-64 (the (2m,k) gradient block no longer stays in cache); ``bench/bench_solvers.py`` (second table)
+#: measures it. On ~180k vertices the batch width hardly matters (memory bound either way).
+MAX_BLOCK = 16
 
 
 def time_step(op: Operators, mode: str | float = "default", coef: float = 1.0) -> float:
@@ -68,11 +70,14 @@ class HeatGeodesics:
         self.backend = self.heat.backend
         self.block = int(max(1, min(MAX_BLOCK, block_bytes // (_BYTES_PER_COLUMN_VERTEX * self.n))))
         self._lumped = np.asarray(op.B.sum(axis=1)).ravel()  # ∫ of each hat function
-        m = len(op.areas)
-        self._Gx, self._Gy = op.G[:m].tocsr(), op.G[m:].tocsr()
-        # −div = Gᵀ·A split by component, with the face areas folded in once
-        self._GxTA = (self._Gx.T @ sp.diags(op.areas)).tocsr()
-        self._GyTA = (self._Gy.T @ sp.diags(op.areas)).tocsr()
+        self._m = len(op.areas)
+        # One (2m,n) gradient product per batch and one (n,2m) product for the right-hand side of Eq. 10:
+        # −div H = Gᵀ·diag(A,A)·H = op.D·(∇u/|∇u|), the minus sign of H = −∇u/|∇u| folded into op.D.
+        self._G = sp.csr_matrix(op.G, copy=True)
+        self._G.eliminate_zeros()  # the local frames put exact zeros in G (one per face): skip them
+        self._G.sort_indices()
+        self._D = sp.csr_matrix(op.D)
+        self._D.sort_indices()
 
     def _weights(self, sources) -> sp.csc_matrix:
         """Sources as an (n,k) sparse weight matrix: vertex indices → unit columns; a matrix is taken as is."""
@@ -93,20 +98,16 @@ class HeatGeodesics:
 
     def _distances_block(self, W: sp.csc_matrix) -> np.ndarray:
         u = self.kernels(W)
-        k = W.shape[1]
-        gx, gy = self._Gx @ u, self._Gy @ u  # per-face ∇u in local frames, (m,k) each
-        norm = gx * gx
-        norm += gy * gy
-        np.sqrt(norm, out=norm)
-        norm[norm == 0] = 1.0  # flat regions: no direction, zero field
-        gx /= norm  # Eq. 8: H = −∇u/|∇u|; the sign is folded into the next line
-        gy /= norm
-        rhs = self._GxTA @ gx
-        rhs += self._GyTA @ gy
-        rhs *= -1.0  # −div H = Gᵀ A H (Eq. 9-10 right-hand side, B·K in the paper)
-        del gx, gy, norm
-        phi = np.zeros((self.n, k))
-        phi[1:] = self.poisson.solve(rhs[1:])
+        k, m = W.shape[1], self._m
+        g = self._G @ u  # per-face ∇u in local frames, (2m,k): rows [0,m) x, rows [m,2m) y
+        del u
+        _normalize(g[:m], g[m:])  # Eq. 8: H = −∇u/|∇u|; the sign is folded into op.D below
+        rhs = self._D @ g  # −div H (Eq. 9-10 right-hand side, B·K in the paper)
+        del g
+        phi = np.empty((self.n, k))
+        phi[0] = 0.0
+        self.poisson.solve(rhs[1:], out=phi[1:])
+        del rhs
         cols = np.repeat(np.arange(k), np.diff(W.indptr))
         phi -= np.bincount(cols, weights=W.data * phi[W.indices, cols], minlength=k)  # source at distance 0
         np.maximum(phi, 0.0, out=phi)  # tiny negative values near the source are discretization noise
@@ -136,6 +137,40 @@ class HeatGeodesics:
             if progress is not None:
                 progress(min(self.block, k - s))
         return out
+
+
+#: :func:`_normalize` works on row chunks of about this many bytes per component (they stay in cache).
+_CHUNK_BYTES = 256 * 2**10
+
+
+def _normalize(gx: np.ndarray, gy: np.ndarray) -> None:
+    """Scale the 2D vectors (gx[i,j], gy[i,j]) to unit length in place; zero vectors stay zero.
+
+    Done on row chunks that fit in cache: on large meshes the (m,k) arrays do not, and the five passes of the
+    normalization would otherwise each stream them through memory.
+    """
+    rows = max(1, _CHUNK_BYTES // (8 * max(gx.shape[1], 1)))
+    buf = np.empty((min(rows, len(gx)), gx.shape[1]))
+    for a in range(0, len(gx), rows):
+        x, y = gx[a : a + rows], gy[a : a + rows]
+        norm = buf[: len(x)]
+        np.multiply(x, x, out=norm)
+        norm += y * y
+        np.sqrt(norm, out=norm)
+        norm[norm == 0] = 1.0  # flat regions: no direction, zero field
+        x /= norm
+        y /= norm
+
+
+def _euclidean_from(VT: np.ndarray, i: int) -> np.ndarray:
+    """|V[j] − V[i]| for all j, from VT = Vᵀ (3,n): the same sums in the same order as
+    ``np.linalg.norm(V - V[i], axis=1)`` (so bit-identical), ~8× faster on large meshes (no (n,3) strided reduce).
+    """
+    d = VT - VT[:, i : i + 1]
+    d *= d
+    s = d[0] + d[1]
+    s += d[2]
+    return np.sqrt(s, out=s)
 
 
 def point_sources(F: np.ndarray, face: np.ndarray, bary: np.ndarray, n: int) -> sp.csc_matrix:
@@ -185,13 +220,14 @@ def farthest_point_landmarks(
     D[:, :1] = solver.distances(chosen[:1], progress=progress)
     mind = D[:, 0].copy()
     done = 1
+    VT = np.ascontiguousarray(np.asarray(V).T)  # (3,n): the straight-line distances below, column by column
     while done < k:
         b = min(done, k - done)
         cur = mind.copy()
         for j in range(b):
             i = int(np.argmax(cur))
             chosen[done + j] = i
-            np.minimum(cur, np.linalg.norm(V - V[i], axis=1), out=cur)
+            np.minimum(cur, _euclidean_from(VT, i), out=cur)
         solver.distances(chosen[done : done + b], out=D[:, done : done + b], progress=progress)
         np.minimum(mind, D[:, done : done + b].min(axis=1), out=mind)
         done += b

@@ -124,8 +124,10 @@ def validate_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
             f"{int((cnt_u > 2).sum())} non-manifold edges (shared by more than two faces)"
             " — repair the mesh (split non-manifold edges, remove duplicate faces) first"
         )
-    dkey = np.sort(he[:, 0] * n + he[:, 1])
-    same_way = int((dkey[1:] == dkey[:-1]).sum())
+    # A directed edge used twice: the two half-edges of an interior edge run the same way.
+    pair = starts[cnt_u == 2]
+    h1, h2 = order[pair], order[pair + 1]  # the two half-edges of each interior edge
+    same_way = int((he[h1, 0] == he[h2, 0]).sum())
     if same_way:
         raise MeshError(
             f"{same_way} edges run the same way in both of their faces: the faces are inconsistently"
@@ -135,17 +137,13 @@ def validate_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
     referenced[F.ravel()] = True
     # Vertex manifoldness: the face corners at a vertex must form one fan. Corners (face, vertex) of two
     # faces sharing an edge are linked at both ends of the edge; each vertex must own one linked group.
-    pair = starts[cnt_u == 2]
-    h1, h2 = order[pair], order[pair + 1]  # the two half-edges of each interior edge (opposite directions)
-    f1, f2 = h1 % m, h2 % m
-    a, b = he[h1, 0], he[h1, 1]
-    ends = []
-    for v in (a, b):
-        s1 = np.argmax(F[f1] == v[:, None], axis=1)
-        s2 = np.argmax(F[f2] == v[:, None], axis=1)
-        ends.append((3 * f1 + s1, 3 * f2 + s2))
-    r = np.concatenate([ends[0][0], ends[1][0]])
-    c = np.concatenate([ends[0][1], ends[1][1]])
+    # Half-edge h = c·m + f runs from corner c of face f to corner (c+1)%3; its twin (opposite direction, as
+    # checked above) from corner c2 of f2 to (c2+1)%3: so the edge's first end sits at corners c1 of f1 and
+    # (c2+1)%3 of f2, its second end at (c1+1)%3 of f1 and c2 of f2.
+    f1, c1 = h1 % m, h1 // m
+    f2, c2 = h2 % m, h2 // m
+    r = np.concatenate([3 * f1 + c1, 3 * f1 + (c1 + 1) % 3])
+    c = np.concatenate([3 * f2 + (c2 + 1) % 3, 3 * f2 + c2])
     graph = sp.csr_matrix((np.ones(len(r)), (r, c)), shape=(3 * m, 3 * m))
     _, comp = connected_components(graph, directed=False)
     fans = np.unique(F.ravel() * (3 * m) + comp)  # distinct (vertex, corner group) pairs
@@ -157,10 +155,12 @@ def validate_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
             f"{int(np.argmax(nonman_v))}) — split them or remove the extra fans first"
         )
 
-    # Connected components over faces sharing a vertex.
-    rows = np.repeat(np.arange(m), 3)
-    adj = sp.csr_matrix((np.ones(3 * m), (rows, F.ravel())), shape=(m, n))
-    ncomp, _ = connected_components(adj @ adj.T, directed=False)
+    # Connected components over faces sharing a vertex = components of the edge graph on the referenced
+    # vertices (each face links its three vertices by its edges); unreferenced vertices are isolated.
+    e = order[starts]  # one half-edge per edge
+    edges = sp.csr_matrix((np.ones(len(e)), (he[e, 0], he[e, 1])), shape=(n, n))
+    ncomp, _ = connected_components(edges, directed=False)
+    ncomp -= n - int(referenced.sum())
     if ncomp > 1:
         raise MeshError(
             f"the mesh has {ncomp} connected components — split it and parameterize each part separately"

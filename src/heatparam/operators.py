@@ -93,10 +93,12 @@ def gradient_operator(lengths: np.ndarray, F: np.ndarray, n: int) -> sp.csr_matr
     e = np.roll(P, -2, axis=1) - np.roll(P, -1, axis=1)  # e[:, i] = p_k - p_j for (i, j, k) cyclic
     gx = -e[:, :, 1] / area2
     gy = e[:, :, 0] / area2
-    rows = np.concatenate([np.repeat(np.arange(m), 3), np.repeat(np.arange(m, 2 * m), 3)])
-    cols = np.concatenate([F.ravel(), F.ravel()])
-    vals = np.concatenate([gx.ravel(), gy.ravel()])
-    return sp.csr_matrix((vals, (rows, cols)), shape=(2 * m, n))
+    # CSR directly, three entries per row with the column indices sorted (what COO → CSR conversion gives)
+    s = np.argsort(F, axis=1, kind="stable")
+    cols = np.take_along_axis(F, s, axis=1).ravel()
+    vals = np.concatenate([np.take_along_axis(gx, s, axis=1).ravel(), np.take_along_axis(gy, s, axis=1).ravel()])
+    indptr = np.arange(0, 6 * m + 1, 3, dtype=np.int64)
+    return sp.csr_matrix((vals, np.concatenate([cols, cols]), indptr), shape=(2 * m, n))
 
 
 def divergence_operator(G: sp.csr_matrix, areas: np.ndarray) -> sp.csr_matrix:

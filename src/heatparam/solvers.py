@@ -59,13 +59,27 @@ class Factor:
             self._f = pypardiso.PyPardisoSolver(mtype=2)  # real symmetric positive definite
             self._f.factorize(sp.triu(self._A, format="csr"))
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        """Solve A x = b for b (n,) or (n,k) float64; returns a new array of b's shape."""
+    def solve(self, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Solve A x = b for b (n,) or (n,k) float64; returns x, a new array of b's shape or ``out``.
+
+        ``out``: optional C-contiguous float64 array of b's shape to write x into (the cholespy backend then
+        solves straight into it, with no copy); it must not overlap b.
+        """
         b = np.ascontiguousarray(b, dtype=np.float64)
         if self.backend == "cholespy":
-            x = np.empty_like(b)
+            x = out if _writable_c_float64(out, b.shape) else np.empty_like(b)
             self._f.solve(b, x)
+        elif self.backend == "scipy":
+            x = self._f.solve(b)
+        else:
+            x = self._f.solve(sp.triu(self._A, format="csr"), b).reshape(b.shape)
+        if out is None:
             return x
-        if self.backend == "scipy":
-            return self._f.solve(b)
-        return self._f.solve(sp.triu(self._A, format="csr"), b).reshape(b.shape)
+        if x is not out:
+            out[...] = x
+        return out
+
+
+def _writable_c_float64(a: np.ndarray | None, shape: tuple[int, ...]) -> bool:
+    return (a is not None and a.shape == shape and a.dtype == np.float64 and a.flags.c_contiguous
+            and a.flags.writeable)
