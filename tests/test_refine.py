@@ -190,3 +190,32 @@ def test_camelhead_bijective():
 def test_beetle_bijective():
     """20k vertices, 10 holes; ~15 s on 2 cores."""
     _check_bijective(*_load("beetle.off"))
+
+
+def test_polish_backend_choice(monkeypatch):
+    monkeypatch.setattr(refine, "available_backends", lambda: ["cholespy", "scipy", "pardiso"])
+    assert refine.polish_backend(refine.PARDISO_MIN_UNKNOWNS) == "pardiso"
+    assert refine.polish_backend(refine.PARDISO_MIN_UNKNOWNS - 1) == "cholespy"
+    assert refine.polish_backend(10**9, "scipy") == "scipy"  # an explicit choice is kept
+    monkeypatch.setattr(refine, "available_backends", lambda: ["cholespy", "scipy"])
+    assert refine.polish_backend(10**9) == "cholespy"
+
+
+@pytest.mark.parametrize("backend", ["scipy", "pardiso"])
+def test_polish_backends_agree(backend):
+    """Every factorization backend gives the same polished map (the default one is cholespy where installed)."""
+    from heatparam.solvers import available_backends
+
+    if backend not in available_backends():
+        pytest.skip(f"{backend} not installed")
+    s = shapes.cylinder_with_holes()
+    disk = refine.build_disk(s.V, s.F)
+    g, area = refine.surface_gradients(s.V, s.F)
+    uv0 = refine.tutte(s.V, disk)[: len(s.V)]
+    loops = [disk.outer, *disk.holes]
+    x_ref, info_ref = refine.polish(uv0, s.F, g, area, loops)
+    x, info = refine.polish(uv0, s.F, g, area, loops, backend=backend)
+    assert info["backend"] == backend and info["converged"]
+    assert shapes.layout_error(x, s.uv_true) <= 1e-4
+    # the same map up to a rigid motion (a free-boundary map's rotation is fixed only by a 1e-9 regularization)
+    assert shapes.layout_error(x, x_ref) <= 1e-5

@@ -29,11 +29,11 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from threadpoolctl import threadpool_limits
+from threadpoolctl import ThreadpoolController
 
 from heatparam import metrics
 from heatparam.operators import edge_lengths, intrinsic_areas, local_triangles, mollify
-from heatparam.solvers import Factor
+from heatparam.solvers import Factor, available_backends
 
 REFINE_MODES = ("none", "sd")
 
@@ -310,6 +310,21 @@ class _Pattern:
 #: Cholesky factor; the Hessian is refactorized only when that takes more than PCG_MAX_ITERS iterations.
 PCG_RTOL = 1e-3
 PCG_MAX_ITERS = 12
+#: Hessians with at least this many unknowns (2 per vertex) are factorized by PARDISO when it is installed and the
+#: backend is ``auto``: measured on camelhead↑ (BENCHMARKS.md §4): at 91k unknowns PARDISO 0.8-1.0 s vs CHOLMOD
+#: (cholespy) 0.8-1.1 s per factorization, at 363k 1.7 s vs 7.3-8.3 s; its solves are 1.4-2× slower, so with it the
+#: stale factor is kept for fewer CG iterations (PCG_MAX_ITERS_PARDISO).
+PARDISO_MIN_UNKNOWNS = 200_000
+PCG_MAX_ITERS_PARDISO = 4
+
+
+def polish_backend(unknowns: int, backend: str = "auto") -> str:
+    """The factorization backend of the polish: ``backend`` unless ``auto``; then PARDISO for large systems when
+    installed (see PARDISO_MIN_UNKNOWNS), else the default backend."""
+    if backend != "auto":
+        return backend
+    avail = available_backends()
+    return "pardiso" if unknowns >= PARDISO_MIN_UNKNOWNS and "pardiso" in avail else avail[0]
 
 
 def _newton_direction(H: sp.csc_matrix, rhs: np.ndarray, fac: Factor | None, backend: str
@@ -322,7 +337,8 @@ def _newton_direction(H: sp.csc_matrix, rhs: np.ndarray, fac: Factor | None, bac
     """
     if fac is not None:
         prec = spla.LinearOperator(H.shape, matvec=fac.solve, dtype=np.float64)
-        dx, info = spla.cg(H, rhs, x0=fac.solve(rhs), rtol=PCG_RTOL, maxiter=PCG_MAX_ITERS, M=prec)
+        cap = PCG_MAX_ITERS_PARDISO if backend == "pardiso" else PCG_MAX_ITERS
+        dx, info = spla.cg(H, rhs, x0=fac.solve(rhs), rtol=PCG_RTOL, maxiter=cap, M=prec)
         if info == 0:
             return dx, fac, 0
     fac = Factor(H, backend)
@@ -351,6 +367,7 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
     """
     t0 = time.perf_counter()
     n = len(uv)
+    backend = polish_backend(2 * n, backend)
     pat = _Pattern(F, n)
     w_surf = area / area.sum()
     w_scaf = w_max = SCAFFOLD_WEIGHT * float(w_surf.mean())
@@ -424,6 +441,7 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
     info = {"iterations": it, "converged": converged, "stop": stop,
             "energy_start": float(hist[0] / 4 if hist else np.nan),
             "energy_end": float(hist[-1] / 4 if hist else np.nan), "factorizations": refactorizations,
+            "backend": backend,
             "seconds": round(time.perf_counter() - t0, 3)}
     return x, info
 
@@ -476,9 +494,9 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=Non
             x, start = tutte(V, disk, backend)[:n], "tutte"
     report["start"]["layout"] = start
     bar = progress.bar(max_iters, "polish") if progress is not None else None
-    # One BLAS thread: the polish's vector work is small, and OpenBLAS threads on it cost 10-60% on 2 cores
-    # (2.2 s vs 2.5 s on camelhead alone, 6.2 s with another process busy; BENCHMARKS.md).
-    with threadpool_limits(1, user_api="blas"):
+    # One OpenBLAS thread: the polish's vector work is small, and OpenBLAS threads on it cost 10-60% on 2 cores
+    # (2.2 s vs 2.5 s on camelhead alone, 6.2 s with another process busy). MKL (PARDISO) keeps its threads.
+    with ThreadpoolController().select(internal_api="openblas").limit(limits=1):
         try:
             x, pinfo = polish(x, F, g, area, [disk.outer, *disk.holes], max_iters=max_iters, tol=tol,
                               backend=backend, bar=bar)

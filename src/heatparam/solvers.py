@@ -1,10 +1,12 @@
 """Sparse symmetric positive definite factorizations, factorized once and reused (precompute → solve).
 
 Backends (``backend=``):
-- ``cholespy``: CHOLMOD supernodal Cholesky through the `cholespy` wheel (no system SuiteSparse needed);
-  solves many right-hand sides per call. The default when installed.
+- ``cholespy``: CHOLMOD Cholesky (simplicial or supernodal, CHOLMOD's choice) through the `cholespy` wheel (no
+  system SuiteSparse needed); solves many right-hand sides per call. The default when installed.
 - ``scipy``: SuperLU (``scipy.sparse.linalg.splu``) — always available, the fallback.
-- ``pardiso``: Intel MKL PARDISO through `pypardiso`, if installed (x86-64 only).
+- ``pardiso``: Intel MKL PARDISO through `pypardiso`, if installed (x86-64 only; ``pip install heatparam[fast]``):
+  slower multi-column solves, but 4-5× faster factorization of the refinement's large Hessians (BENCHMARKS.md),
+  so ``refine`` picks it for systems above ``refine.PARDISO_MIN_UNKNOWNS`` unknowns.
 
 ``auto`` takes the first available of cholespy, scipy; BENCHMARKS.md has the measurements behind it.
 """
@@ -55,9 +57,11 @@ class Factor:
         else:
             import pypardiso
 
-            self._A = sp.csr_matrix(A)
+            self._T = sp.triu(A, format="csr")  # PARDISO reads the upper triangle of a symmetric matrix
+            self._T.sort_indices()
             self._f = pypardiso.PyPardisoSolver(mtype=2)  # real symmetric positive definite
-            self._f.factorize(sp.triu(self._A, format="csr"))
+            _remember_mkl(self._f)
+            self._f.factorize(self._T)
 
     def solve(self, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Solve A x = b for b (n,) or (n,k) float64; returns x, a new array of b's shape or ``out``.
@@ -72,12 +76,22 @@ class Factor:
         elif self.backend == "scipy":
             x = self._f.solve(b)
         else:
-            x = self._f.solve(sp.triu(self._A, format="csr"), b).reshape(b.shape)
+            x = self._f.solve(self._T, b).reshape(b.shape)  # same matrix object: pypardiso reuses the factor
         if out is None:
             return x
         if x is not out:
             out[...] = x
         return out
+
+
+def _remember_mkl(solver) -> None:
+    """pypardiso searches sys.prefix for libmkl_rt at every solver it creates (0.3 s here) unless
+    PYPARDISO_MKL_RT names it: name the library the first solver found."""
+    import os
+
+    path = getattr(getattr(solver, "libmkl", None), "_name", None)
+    if path:
+        os.environ.setdefault("PYPARDISO_MKL_RT", path)
 
 
 def _writable_c_float64(a: np.ndarray | None, shape: tuple[int, ...]) -> bool:
