@@ -40,7 +40,8 @@ print(json.dumps({"import": t1 - t0, "load": t2 - t1, "parameterize": t3 - t2, "
                   "end_to_end": t4 - t1, "stages": rep["timings_s"], "peak_mb": peak_mb(),
                   "flips": m["flips"], "crossings": m["boundary_crossings"], "iso": m["iso_mean"],
                   "k": rep["parameters"]["landmarks_used"], "mode": rep["method"]["geodesics"],
-                  "backend": rep["method"]["solver_backend"]}))
+                  "backend": rep["method"]["solver_backend"],
+                  "polish": rep["method"]["refine"].get("polish", {})}))
 """
 
 PEER = PEAK_RSS + """
@@ -221,6 +222,10 @@ def scale_table(args, save_uv_obj) -> None:
                 if "stages" in r:
                     note = (f"{r['mode']} k={r['k']}, {r['backend']}; load {r['load']:.2f} s, save {r['save']:.2f} s; "
                             + ", ".join(f"{k} {v:.2f}" for k, v in r["stages"].items()))
+                    pol = r.get("polish") or {}
+                    if pol:
+                        note += (f"; polish: {pol['iterations']} it, {pol['factorizations']} factorizations "
+                                 f"({pol['backend']})")
                     if len(r["times"]["end_to_end"]) > 1:
                         note = f"median of {len(r['times']['end_to_end'])} runs; first run: " + note
                 print(f"| camelhead↑ | {len(V)} | {name} | {sec:.2f} | {ratio:.2f} | {r['peak_mb']:.0f} | {r['flips']} "

@@ -84,6 +84,16 @@ class Factor:
         return out
 
 
+    def __del__(self) -> None:
+        # pypardiso keeps MKL's factor until told otherwise: without this every dropped Factor leaks it
+        # (camelhead↑180k polish: 6.6 GB peak instead of 1.6 GB)
+        if getattr(self, "backend", None) == "pardiso" and hasattr(self, "_f"):
+            try:
+                self._f.free_memory(everything=True)
+            except Exception:  # noqa: BLE001 - interpreter shutdown: nothing left to free into
+                pass
+
+
 def _remember_mkl(solver) -> None:
     """pypardiso searches sys.prefix for libmkl_rt at every solver it creates (0.3 s here) unless
     PYPARDISO_MKL_RT names it: name the library the first solver found."""
