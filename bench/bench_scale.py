@@ -77,6 +77,8 @@ from heatparam.heat import HeatGeodesics, time_step
 from heatparam.operators import build_operators
 p = json.load(open(sys.argv[1]))
 V, F = load_mesh(p["mesh"])
+used = np.unique(F)  # drop unreferenced vertices (stanford-bunny.obj has 1113): every solver needs them gone
+V, F = V[used], np.searchsorted(used, F)
 n = len(V)
 src = np.linspace(0, n - 1, p["sources"]).astype(np.int64)
 reps = p.get("repeats", 1)
@@ -126,8 +128,23 @@ def _spread(values: list[float], fmt: str = ".2f") -> str:
     return f"{format(float(np.median(values)), fmt)} [{format(min(values), fmt)}-{format(max(values), fmt)}]"
 
 
+def generated_mesh(spec: str, folder: str) -> str:
+    """``cylinder_patch@N``: a generated cylinder patch of about N vertices, written to an OBJ in ``folder``."""
+    from heatparam import io, shapes
+
+    n = int(spec.split("@")[1])
+    s = shapes.cylinder_patch(h=0.04 * float(np.sqrt(2213 / n)))  # 2213 vertices at the default h = 0.04
+    path = str(Path(folder) / f"cylinder_patch_{len(s.V)}.obj")
+    io.save_uv_obj(path, s.V, s.F, s.uv_true)
+    return path
+
+
 def geodesics_table(meshes: list[str], repeats: int, processes: int) -> None:
     """Per-source heat-method geodesic time: heatparam batched, peers one source per call."""
+    import tempfile
+
+    tmp = tempfile.TemporaryDirectory()
+    meshes = [generated_mesh(m, tmp.name) if m.startswith("cylinder_patch@") else m for m in meshes]
     for mesh in meshes:
         print(f"\n## Heat-method geodesics per source on {Path(mesh).name}\n")
         runs = [run_isolated(GEODESICS, {"mesh": mesh, "sources": 256, "repeats": repeats}) for _ in range(processes)]
@@ -169,7 +186,9 @@ def main() -> None:
     print(f"# Scale benchmark — {datetime.date.today()} — {machine()}\n")
     if not args.geodesics_only:
         scale_table(args, save_uv_obj)
-    geodesics_table(args.geodesics_mesh, args.repeats, args.geodesics_processes)
+    # bare names: shared meshes; cylinder_patch@N: a generated patch of about N vertices
+    meshes = [m if Path(m).exists() or "@" in m else str(SHARED / m) for m in args.geodesics_mesh]
+    geodesics_table(meshes, args.repeats, args.geodesics_processes)
 
 
 STAGES = ("load", "validate", "fill decision", "operators", "factorize", "geodesics", "mds", "refine", "metrics",

@@ -38,7 +38,8 @@ def _add_heat_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--t-coef", type=float, default=d.t_coef, metavar="C",
                    help="the c in t = c·h² for --time-step default (default: %(default)s)")
     p.add_argument("--solver", choices=("auto", "cholespy", "scipy", "pardiso"), default=d.solver,
-                   help="sparse Cholesky/LU backend (default: %(default)s = fastest installed)")
+                   help="sparse Cholesky/LU backend (default: %(default)s = CHOLMOD through cholespy; the "
+                        "refinement uses PARDISO for systems of >= 200k unknowns when installed: heatparam[fast])")
     p.add_argument("--quiet", action="store_true", help="no progress output")
 
 
