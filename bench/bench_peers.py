@@ -16,20 +16,12 @@ import time
 
 import igl
 import numpy as np
-from common import SHARED
+from common import load
 
-from heatparam import io, metrics, pipeline, refine, shapes
+from heatparam import metrics, pipeline, refine, shapes
 
 MESHES = ["camelhead.off", "halftunnel.off", "beetle.off", "woody.obj", "bump-domain.obj"]
 SHAPES = ["cylinder_patch", "cylinder_with_holes", "cone_s_strip", "curved_cap_with_holes"]
-
-
-def load(name: str):
-    if hasattr(shapes, name):
-        s = getattr(shapes, name)()
-        return s.V, s.F, s.uv_true
-    V, F = io.load_mesh(SHARED / name)
-    return V, F, None
 
 
 def _outer(F):

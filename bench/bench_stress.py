@@ -13,20 +13,12 @@ from __future__ import annotations
 import sys
 import time
 
-from common import SHARED, machine
+from common import load, machine
 
-from heatparam import io, pipeline, shapes
+from heatparam import pipeline, shapes
 
 SHAPES = ["cylinder_patch", "cylinder_with_holes", "cone_s_strip", "curved_cap_with_holes"]
 MESHES = ["halftunnel.off", "beetle.off", "camelhead.off", "woody.obj", "bump-domain.obj"]
-
-
-def load(name: str):
-    if hasattr(shapes, name):
-        s = getattr(shapes, name)()
-        return s.V, s.F, s.uv_true
-    V, F = io.load_mesh(SHARED / name)
-    return V, F, None
 
 
 def row(name: str, V, F, uvt, refine: str, stress: str) -> str:

@@ -25,6 +25,17 @@ def machine() -> str:
             f"{psutil.virtual_memory().total / 2**30:.0f} GiB, Python {platform.python_version()}")
 
 
+def load(name: str):
+    """A generated shape (``heatparam.shapes`` function name) or a ../shared/meshes file: (V, F, uv_true or None)."""
+    from heatparam import io, shapes
+
+    if hasattr(shapes, name):
+        s = getattr(shapes, name)()
+        return s.V, s.F, s.uv_true
+    V, F = io.load_mesh(SHARED / name)
+    return V, F, None
+
+
 def upsampled_camelhead(target: int) -> tuple[np.ndarray, np.ndarray]:
     """camelhead.off, midpoint-subdivided (igl.upsample) until it has about ``target`` vertices."""
     import igl
