@@ -219,3 +219,40 @@ def test_polish_backends_agree(backend):
     assert shapes.layout_error(x, s.uv_true) <= 1e-4
     # the same map up to a rigid motion (a free-boundary map's rotation is fixed only by a 1e-9 regularization)
     assert shapes.layout_error(x, x_ref) <= 1e-5
+
+
+def test_scaffold_refuses_crossing_loops():
+    """Loops that cross cannot bound a scaffold: a clear ValueError, not a broken triangulation."""
+    s = shapes.cylinder_with_holes()
+    disk = refine.build_disk(s.V, s.F)
+    uv = s.uv_true.copy()
+    hole = disk.holes[0]
+    # drag one hole vertex far outside the outer loop: the hole's edges now cross it
+    uv[hole[0]] = uv[disk.outer].max(axis=0) + 1.0
+    with pytest.raises(ValueError, match="scaffold"):
+        refine.build_scaffold(uv, [disk.outer, *disk.holes])
+
+
+def test_polish_stops_cleanly_on_a_layout_it_cannot_scaffold():
+    """Handed a non-bijective layout, the polish returns it unchanged and says why (refine() never does this)."""
+    s = shapes.cylinder_with_holes()
+    disk = refine.build_disk(s.V, s.F)
+    g, area = refine.surface_gradients(s.V, s.F)
+    uv = s.uv_true.copy()
+    uv[disk.holes[0][0]] = uv[disk.outer].max(axis=0) + 1.0
+    x, info = refine.polish(uv, s.F, g, area, [disk.outer, *disk.holes])
+    assert np.array_equal(x, uv)
+    assert not info["converged"] and info["stop"].startswith("scaffold failed")
+
+
+def test_refine_report_says_what_was_done():
+    s = shapes.curved_cap_with_holes()
+    _, rep = pipeline.parameterize(s.V, s.F)
+    r = rep["method"]["refine"]
+    assert r["holes"] == len(refine.build_disk(s.V, s.F).holes) >= 1
+    assert r["start"]["layout"] in ("mds", "lscm", "tutte")
+    pol = r["polish"]
+    assert pol["converged"] and pol["stop"] == "converged" and pol["iterations"] >= 1
+    assert pol["energy_end"] <= pol["energy_start"]
+    assert pol["backend"] in ("cholespy", "scipy", "pardiso")
+    assert r["bijective"] and r["flips"] == 0 and r["boundary_crossings"] == 0

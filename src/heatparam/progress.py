@@ -27,8 +27,9 @@ class Progress:
         finally:
             self.timings[name] = round(self.timings.get(name, 0.0) + time.perf_counter() - t0, 4)
 
-    def bar(self, total: int, desc: str, unit: str = "it") -> tqdm:
-        """A progress bar over ``total`` units; shown only after a second and when enabled."""
+    def bar(self, total: int | None, desc: str, unit: str = "it") -> tqdm:
+        """A progress bar over ``total`` units (None: open-ended counter); shown only after a second and when
+        enabled."""
         return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, disable=not self.enabled,
                     mininterval=0.5, delay=1.0, leave=False)
 

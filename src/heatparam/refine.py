@@ -266,7 +266,10 @@ def build_scaffold(uv: np.ndarray, loops: list[np.ndarray]) -> Scaffold:
         E.append(np.column_stack([k, np.roll(k, -1)]))
         s += len(lp)
     E.append(len(ids) + np.array([[0, 1], [1, 2], [2, 3], [3, 0]]))
-    P2, T = gpy.triangulate_polygon(np.vstack([P, box]), np.vstack(E), a=0.0, q=0.0, steiner=False)
+    try:
+        P2, T = gpy.triangulate_polygon(np.vstack([P, box]), np.vstack(E), a=0.0, q=0.0, steiner=False)
+    except (ValueError, RuntimeError) as exc:  # CDT: crossing constraints, duplicate points
+        raise ValueError(f"cannot triangulate the scaffold (boundary loops touch or cross): {exc}") from exc
     if len(P2) != len(ids) + 4:
         raise ValueError("the scaffold triangulation added vertices (boundary loops touch or cross)")
     glob = np.concatenate([ids, len(uv) + np.arange(4)])
@@ -418,9 +421,10 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
                 break
             t, E1 = 2 * t, E2
         x = x + t * d
-        if bar is not None:
-            bar.update(1)
         Es1 = symmetric_dirichlet(jacobians(x, F, g), w_surf)[0]
+        if bar is not None:
+            bar.set_postfix_str(f"energy {Es1 / 4:.5f} (1 = isometry)", refresh=False)
+            bar.update(1)
         if (hist[-1] - Es1) / hist[-1] < tol:
             # a tiny decrease means convergence only if the Newton step was not cut short by the flip barrier and
             # the scaffold was already at its lightest (a stiff scaffold slows boundary vertices down); cut-short
@@ -493,7 +497,8 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=Non
         if flips or cross:
             x, start = tutte(V, disk, backend)[:n], "tutte"
     report["start"]["layout"] = start
-    bar = progress.bar(max_iters, "polish") if progress is not None else None
+    # open-ended: Newton stops when converged (5-50 iterations measured), far below the cap
+    bar = progress.bar(None, "polish (Newton)") if progress is not None else None
     # One OpenBLAS thread: the polish's vector work is small, and OpenBLAS threads on it cost 10-60% on 2 cores
     # (2.2 s vs 2.5 s on camelhead alone, 6.2 s with another process busy). MKL (PARDISO) keeps its threads.
     with ThreadpoolController().select(internal_api="openblas").limit(limits=1):
