@@ -161,20 +161,25 @@ def cmd_geodesics(args: argparse.Namespace) -> int:
 
     out = _check_output(args.output, (args.input,), ".npy")
     V, F = io.load_mesh(args.input)
-    info = validate_mesh(V, F)
+    info = validate_mesh(V, F, flatten=False)  # distances need no boundary: closed scans are fine here
     src = np.asarray(args.source, dtype=np.int64)
     bad = src[(src < 0) | (src >= len(V))]
     if len(bad):
         raise HeatparamError(f"source vertex {int(bad[0])} is out of range (the mesh has {len(V)} vertices)")
     if not info.referenced[src].all():
         raise HeatparamError(f"source vertex {int(src[~info.referenced[src]][0])} is not used by any face")
-    if info.n_unreferenced:
-        raise HeatparamError(f"{info.n_unreferenced} unreferenced vertices: remove them before computing geodesics")
-    op = build_operators(V, F)
+    # operators on the referenced vertices; unreferenced ones are unreachable (inf)
+    keep = np.flatnonzero(info.referenced)
+    remap = np.full(len(V), -1, dtype=np.int64)
+    remap[keep] = np.arange(len(keep))
+    op = build_operators(V[keep], remap[F])
     solver = heat.HeatGeodesics(op, heat.time_step(op, args.time_step, args.t_coef), backend=args.solver)
-    io.save_npy(out, solver.distances(src))
+    D = np.full((len(V), len(src)), np.inf)
+    D[keep] = solver.distances(remap[src])
+    io.save_npy(out, D)
     if not args.quiet:
-        print(f"wrote {out}: distances from {len(src)} sources to {len(V)} vertices", file=sys.stderr)
+        extra = f" ({info.n_unreferenced} unreferenced vertices: inf)" if info.n_unreferenced else ""
+        print(f"wrote {out}: distances from {len(src)} sources to {len(V)} vertices{extra}", file=sys.stderr)
     return 0
 
 

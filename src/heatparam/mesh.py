@@ -71,13 +71,16 @@ def loop_length(V: np.ndarray, loop: np.ndarray) -> float:
     return float(np.linalg.norm(V[loop] - V[np.roll(loop, -1)], axis=1).sum())
 
 
-def validate_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
+def validate_mesh(V: np.ndarray, F: np.ndarray, flatten: bool = True) -> MeshInfo:
     """Check that (V, F) is a single connected, orientable 2-manifold disk (possibly with holes).
 
     Parameters
     ----------
     V : (n,3) float64 vertex positions.
     F : (m,3) int64 triangle indices.
+    flatten : True (default) also refuses what cannot be flattened: closed surfaces, handles, nearly closed
+        surfaces. False keeps only the checks that surface operators need (finite, manifold, oriented, one
+        component, not degenerate), e.g. for geodesic distances on a closed scan.
 
     Returns
     -------
@@ -167,13 +170,13 @@ def validate_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
         )
 
     n_boundary_edges = int((cnt_u == 1).sum())
-    if n_boundary_edges == 0:
+    if n_boundary_edges == 0 and flatten:
         raise MeshError("closed mesh — cut it open first (it has no boundary, so it cannot be flattened)")
-    loops = boundary_loops(V, F)
+    loops = boundary_loops(V, F) if n_boundary_edges else []
     n_edges = len(starts)
     chi = int(referenced.sum()) - n_edges + m
     genus2 = 2 - len(loops) - chi
-    if genus2 > 0:
+    if genus2 > 0 and flatten:
         raise MeshError(
             f"the surface has {genus2 // 2 or 1} handle(s) (genus > 0) — cut it into a disk (with holes) first"
         )
@@ -205,8 +208,8 @@ def validate_mesh(V: np.ndarray, F: np.ndarray) -> MeshInfo:
         )
     # Nearly closed surfaces (a sphere with small holes) have an outer border that is short compared
     # with the size of the surface: no flat layout of them has low distortion.
-    closure = loop_length(V, loops[0]) ** 2 / info.area
-    if closure < NEARLY_CLOSED_RATIO:
+    closure = loop_length(V, loops[0]) ** 2 / info.area if loops else 0.0
+    if closure < NEARLY_CLOSED_RATIO and flatten:
         raise MeshError(
             f"nearly closed surface (outer border length²/area = {closure:.2f} < {NEARLY_CLOSED_RATIO}): it "
             "wraps around and cannot be flattened without huge distortion — cut it open or segment it first"
