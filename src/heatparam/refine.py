@@ -291,7 +291,6 @@ class _Pattern:
     """Sparsity pattern of the surface's (2n,2n) Hessian, built once; ``matrix(vals)`` sums per-face blocks."""
 
     def __init__(self, F: np.ndarray, n: int):
-        m = len(F)
         ids = np.concatenate([F, F + n], axis=1)  # (m,6), same order as sd_newton_blocks
         rows = np.repeat(ids, 6, axis=1).ravel()
         cols = np.tile(ids, (1, 6)).ravel()
@@ -302,7 +301,6 @@ class _Pattern:
         self.indices = r.astype(np.int32)
         self.indptr = np.searchsorted(c, np.arange(2 * n + 1)).astype(np.int32)
         self.nnz = len(uniq)
-        del m
 
     def matrix(self, vals: np.ndarray) -> sp.csc_matrix:
         data = np.bincount(self.inv, weights=vals.ravel(), minlength=self.nnz)
