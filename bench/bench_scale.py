@@ -170,6 +170,9 @@ def geodesics_table(meshes: list[str], repeats: int, processes: int) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", type=int, nargs="+", default=[10000, 50000, 200000])
+    ap.add_argument("--surface", choices=("camelhead", "cylinder_patch"), default="camelhead",
+                    help="camelhead.off midpoint-upsampled (strongly curved, MDS folds) or a generated developable "
+                         "cylinder patch of about each size (MDS does not fold)")
     ap.add_argument("--slim-max", type=int, default=20000, help="largest mesh on which SLIM is run")
     ap.add_argument("--slim-iters", type=int, default=100)
     ap.add_argument("--geodesics-mesh", nargs="*", default=[str(SHARED / "beetle.off"), str(SHARED / "camelhead.off")],
@@ -214,8 +217,15 @@ def scale_table(args, save_uv_obj) -> None:
     stage_rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for size in args.sizes:
-            V, F = upsampled_camelhead(size)
-            path = Path(tmp) / f"camel{len(V)}.obj"
+            if args.surface == "camelhead":
+                V, F = upsampled_camelhead(size)
+                label = "camelhead↑"
+            else:
+                from heatparam import shapes
+
+                sh = shapes.cylinder_patch(h=0.04 * float(np.sqrt(2213 / size)))  # 2213 vertices at h = 0.04
+                V, F, label = sh.V, sh.F, "cylinder_patch"
+            path = Path(tmp) / f"{args.surface}{len(V)}.obj"
             save_uv_obj(path, V, F, np.zeros((len(V), 2)))
             lscm = run_isolated(PEER, {"mesh": str(path), "peer": "lscm"})
             rows = [("libigl LSCM", lscm, "")]
@@ -234,7 +244,7 @@ def scale_table(args, save_uv_obj) -> None:
                     rows.append(("libigl SLIM", {"error": f"skipped above {args.slim_max} vertices"}, ""))
             for name, r, note in rows:
                 if "error" in r:
-                    print(f"| camelhead↑ | {len(V)} | {name} | — | — | — | — | — | — | {r['error']} |")
+                    print(f"| {label} | {len(V)} | {name} | — | — | — | — | — | — | {r['error']} |")
                     continue
                 sec = float(np.median(r["times"]["end_to_end"])) if "times" in r else r["seconds"]
                 ratio = sec / lscm["seconds"] if "seconds" in lscm else float("nan")
@@ -247,7 +257,7 @@ def scale_table(args, save_uv_obj) -> None:
                                  f"({pol['backend']})")
                     if len(r["times"]["end_to_end"]) > 1:
                         note = f"median of {len(r['times']['end_to_end'])} runs; first run: " + note
-                print(f"| camelhead↑ | {len(V)} | {name} | {sec:.2f} | {ratio:.2f} | {r['peak_mb']:.0f} | {r['flips']} "
+                print(f"| {label} | {len(V)} | {name} | {sec:.2f} | {ratio:.2f} | {r['peak_mb']:.0f} | {r['flips']} "
                       f"| {r['crossings']} | {r['iso']:.3f} | {note} |")
     if args.repeats > 1:
         print(f"\n### heatparam --refine none, seconds per stage: median [min-max] of {args.repeats} fresh processes\n")

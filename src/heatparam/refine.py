@@ -288,22 +288,43 @@ def _scaffold_matrix(F: np.ndarray, blocks: np.ndarray, n: int) -> sp.csc_matrix
 
 
 class _Pattern:
-    """Sparsity pattern of the surface's (2n,2n) Hessian, built once; ``matrix(vals)`` sums per-face blocks."""
+    """Sparsity pattern of the surface's (2n,2n) Hessian, built once; ``matrix(vals)`` sums per-face blocks.
+
+    The Hessian is a 2×2 block matrix [[H_uu, H_uv], [H_vu, H_vv]] whose four blocks share the vertex-adjacency
+    pattern A (n,n), so only the 9 vertex pairs of each face are located in A (one sort of 9m keys, not of the
+    36m entries); column (b, v) of the full CSC matrix holds A's column v twice, rows u then n + u.
+    """
 
     def __init__(self, F: np.ndarray, n: int):
-        ids = np.concatenate([F, F + n], axis=1)  # (m,6), same order as sd_newton_blocks
-        rows = np.repeat(ids, 6, axis=1).ravel()
-        cols = np.tile(ids, (1, 6)).ravel()
-        key = cols.astype(np.int64) * (2 * n) + rows
-        uniq, self.inv = np.unique(key, return_inverse=True)
+        m = len(F)
+        ci, cj = np.divmod(np.arange(9), 3)
+        R, C = F[:, ci].ravel(), F[:, cj].ravel()  # (9m,) row and column vertex of corner pair (i, j)
+        A = sp.csc_matrix((np.ones(9 * m), (R, C)), shape=(n, n))
+        A.sum_duplicates()  # also sorts each column's rows
+        ptr, rows = A.indptr.astype(np.int64), A.indices.astype(np.int64)
+        deg = np.diff(ptr)
+        nnz = len(rows)
+        col = np.repeat(np.arange(n, dtype=np.int64), deg)
+        local = np.searchsorted(col * n + rows, C.astype(np.int64) * n + R) - ptr[C]  # place of (R, C) in column C
+        # full CSC layout: column b*n + v starts at b*2nnz + 2 ptr[v]; rows a*n + u sit at a*deg[v] + local
+        half = np.empty(2 * nnz, dtype=np.int64)
+        at = 2 * ptr[col] + (np.arange(nnz) - ptr[col])
+        half[at] = rows
+        half[at + deg[col]] = rows + n
+        self.indices = np.concatenate([half, half]).astype(np.int32)
+        self.indptr = np.concatenate([2 * ptr[:-1], 2 * nnz + 2 * ptr]).astype(np.int32)
         self.shape = (2 * n, 2 * n)
-        c, r = np.divmod(uniq, 2 * n)
-        self.indices = r.astype(np.int32)
-        self.indptr = np.searchsorted(c, np.arange(2 * n + 1)).astype(np.int32)
-        self.nnz = len(uniq)
+        self.nnz = 4 * nnz
+        base = (2 * ptr[C] + local).reshape(m, 3, 3)  # (f, i, j): offset of pair (F[f,i], F[f,j]) in a half
+        degC = deg[C].reshape(m, 3, 3)
+        inv = np.empty((m, 2, 3, 2, 3), dtype=np.int64)  # block entry (a*3+i, b*3+j), as sd_newton_blocks
+        for a in range(2):
+            for b in range(2):
+                inv[:, a, :, b, :] = b * 2 * nnz + base + a * degC
+        self.inv = inv.reshape(m, 36)
 
     def matrix(self, vals: np.ndarray) -> sp.csc_matrix:
-        data = np.bincount(self.inv, weights=vals.ravel(), minlength=self.nnz)
+        data = np.bincount(self.inv.ravel(), weights=vals.ravel(), minlength=self.nnz)
         return sp.csc_matrix((data, self.indices, self.indptr), shape=self.shape)
 
 
