@@ -192,13 +192,15 @@ def test_beetle_bijective():
     _check_bijective(*_load("beetle.off"))
 
 
-def test_polish_backend_choice(monkeypatch):
-    monkeypatch.setattr(refine, "available_backends", lambda: ["cholespy", "scipy", "pardiso"])
-    assert refine.polish_backend(refine.PARDISO_MIN_UNKNOWNS) == "pardiso"
-    assert refine.polish_backend(refine.PARDISO_MIN_UNKNOWNS - 1) == "cholespy"
-    assert refine.polish_backend(10**9, "scipy") == "scipy"  # an explicit choice is kept
-    monkeypatch.setattr(refine, "available_backends", lambda: ["cholespy", "scipy"])
-    assert refine.polish_backend(10**9) == "cholespy"
+def test_large_system_backend_choice(monkeypatch):
+    from heatparam import solvers
+
+    monkeypatch.setattr(solvers, "available_backends", lambda: ["cholespy", "scipy", "pardiso"])
+    assert solvers.large_system_backend(solvers.PARDISO_MIN_UNKNOWNS) == "pardiso"
+    assert solvers.large_system_backend(solvers.PARDISO_MIN_UNKNOWNS - 1) == "cholespy"
+    assert solvers.large_system_backend(10**9, "scipy") == "scipy"  # an explicit choice is kept
+    monkeypatch.setattr(solvers, "available_backends", lambda: ["cholespy", "scipy"])
+    assert solvers.large_system_backend(10**9) == "cholespy"
 
 
 @pytest.mark.parametrize("backend", ["scipy", "pardiso"])

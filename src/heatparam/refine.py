@@ -33,7 +33,7 @@ from threadpoolctl import ThreadpoolController
 
 from heatparam import metrics
 from heatparam.operators import edge_lengths, intrinsic_areas, local_triangles, mollify
-from heatparam.solvers import Factor, available_backends
+from heatparam.solvers import Factor, large_system_backend
 
 REFINE_MODES = ("none", "sd")
 
@@ -332,21 +332,7 @@ class _Pattern:
 #: Cholesky factor; the Hessian is refactorized only when that takes more than PCG_MAX_ITERS iterations.
 PCG_RTOL = 1e-3
 PCG_MAX_ITERS = 12
-#: Hessians with at least this many unknowns (2 per vertex) are factorized by PARDISO when it is installed and the
-#: backend is ``auto``: measured on camelhead↑ (BENCHMARKS.md §4): at 91k unknowns PARDISO 0.8-1.0 s vs CHOLMOD
-#: (cholespy) 0.8-1.1 s per factorization, at 363k 1.7 s vs 7.3-8.3 s; its solves are 1.4-2× slower, so with it the
-#: stale factor is kept for fewer CG iterations (PCG_MAX_ITERS_PARDISO).
-PARDISO_MIN_UNKNOWNS = 200_000
-PCG_MAX_ITERS_PARDISO = 4
-
-
-def polish_backend(unknowns: int, backend: str = "auto") -> str:
-    """The factorization backend of the polish: ``backend`` unless ``auto``; then PARDISO for large systems when
-    installed (see PARDISO_MIN_UNKNOWNS), else the default backend."""
-    if backend != "auto":
-        return backend
-    avail = available_backends()
-    return "pardiso" if unknowns >= PARDISO_MIN_UNKNOWNS and "pardiso" in avail else avail[0]
+PCG_MAX_ITERS_PARDISO = 4  # with PARDISO's cheap factorizations the stale factor is kept for fewer CG steps
 
 
 def _newton_direction(H: sp.csc_matrix, rhs: np.ndarray, fac: Factor | None, backend: str
@@ -389,7 +375,7 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
     """
     t0 = time.perf_counter()
     n = len(uv)
-    backend = polish_backend(2 * n, backend)
+    backend = large_system_backend(2 * n, backend)
     pat = _Pattern(F, n)
     w_surf = area / area.sum()
     w_scaf = w_max = SCAFFOLD_WEIGHT * float(w_surf.mean())

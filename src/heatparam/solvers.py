@@ -6,7 +6,8 @@ Backends (``backend=``):
 - ``scipy``: SuperLU (``scipy.sparse.linalg.splu``) — always available, the fallback.
 - ``pardiso``: Intel MKL PARDISO through `pypardiso`, if installed (x86-64 only; ``pip install heatparam[fast]``):
   slower multi-column solves, but 4-5× faster factorization of the refinement's large Hessians (BENCHMARKS.md),
-  so ``refine`` picks it for systems above ``refine.PARDISO_MIN_UNKNOWNS`` unknowns.
+  so :func:`large_system_backend` picks it for systems of ``PARDISO_MIN_UNKNOWNS`` or more unknowns (the
+  refinement's Hessians and the LSCM layout; not the heat-method solves, whose many right-hand sides favour CHOLMOD).
 
 ``auto`` takes the first available of cholespy, scipy; BENCHMARKS.md has the measurements behind it.
 """
@@ -31,6 +32,21 @@ def available_backends() -> list[str]:
     if importlib.util.find_spec("pypardiso") is not None:
         out.append("pardiso")
     return out
+
+
+#: Single-system solves with at least this many unknowns use PARDISO when it is installed and the backend is
+#: ``auto``. Measured on camelhead↑ refinement Hessians (BENCHMARKS.md §4): 91k unknowns PARDISO 0.8-1.0 s vs
+#: CHOLMOD (cholespy) 0.8-1.1 s per factorization, 363k unknowns 1.7 s vs 7.3-8.3 s; its solves are 1.4-2× slower.
+PARDISO_MIN_UNKNOWNS = 200_000
+
+
+def large_system_backend(unknowns: int, backend: str = "auto") -> str:
+    """``backend`` unless ``auto``; then PARDISO for systems of ≥ PARDISO_MIN_UNKNOWNS unknowns when installed, else
+    the default backend."""
+    if backend != "auto":
+        return backend
+    avail = available_backends()
+    return "pardiso" if unknowns >= PARDISO_MIN_UNKNOWNS and "pardiso" in avail else avail[0]
 
 
 class Factor:
