@@ -274,3 +274,16 @@ def test_hessian_pattern_assembles_like_coo(make):
     H = refine._Pattern(F, n).matrix(vals)
     assert H.shape == ref.shape and H.nnz == ref.nnz and H.has_sorted_indices
     assert abs(H - ref).max() <= 1e-12
+
+
+def test_polish_of_an_isometry_converges_at_once():
+    """A start that is already the minimum (here a flat disk laid out as itself) is reported converged after one
+    Newton decrement check, not as a failed line search (it used to end 'no descent', converged False)."""
+    from conftest import flat_disk
+
+    V, F = flat_disk(n_ring=12)
+    g, area = refine.surface_gradients(V, F)
+    disk = refine.build_disk(V, F)
+    x, info = refine.polish(V[:, :2].copy(), F, g, area, [disk.outer, *disk.holes])
+    assert info["converged"] and info["stop"] == "converged" and info["iterations"] == 1
+    assert np.array_equal(x, V[:, :2])

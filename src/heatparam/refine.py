@@ -236,6 +236,7 @@ SCAFFOLD_WEIGHT = 1e-2  # largest energy weight of one scaffold triangle, relati
 SCAFFOLD_ADAPT = 2.0  # after an uncut Newton step the scaffold weight is divided by this, after a cut one multiplied
 SCAFFOLD_WEIGHT_MIN = 1e-4  # ... within [SCAFFOLD_WEIGHT_MIN, 1] × SCAFFOLD_WEIGHT
 SCAFFOLD_MARGIN = 0.5  # the box extends this fraction of the layout's extent beyond it on every side
+DECREMENT_TOL = 1e-3  # converged at once when the Newton decrement predicts less than this × tol relative decrease
 STALL_ITERS = 5  # the polish gives up after this many barrier-limited iterations in a row that gain < tol
 
 
@@ -406,6 +407,12 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
         H = H + sp.identity(2 * n, format="csc") * (1e-9 * float(H.diagonal().mean()))  # rigid rotation
         dx, fac, fresh = _newton_direction(H, rhs, fac, backend)
         refactorizations += fresh
+        # Newton decrement: the quadratic model's predicted decrease. Negligible (far below tol, so that a stiff
+        # scaffold holding boundary vertices back cannot fake it) means the start is already the minimum: e.g. the
+        # LSCM start of a developable surface, an isometry to round-off, where line searches find no descent
+        if 0.5 * float(rhs @ dx) <= DECREMENT_TOL * tol * E0:
+            converged, stop = True, "converged"
+            break
         d = np.column_stack([dx[:n], dx[n:]])
         D, Ds = jacobians(d, F, g), jacobians(np.vstack([d, np.zeros((4, 2))]), sc.F, gs)
         tmax = 0.9 * min(max_step(J, D), max_step(Js, Ds))
