@@ -482,9 +482,10 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=Non
            conformal: Callable[[], np.ndarray] | None = None) -> tuple[np.ndarray, dict]:
     """Make the MDS layout ``uv`` (n,2) of (V (n,3), F (m,3)) bijective and near-isometric (true scale).
 
-    Start: the MDS layout if it is bijective (no flipped face, no crossing of any boundary loop), else the LSCM
-    layout (``conformal()`` if given — the fill decision already computed it — else computed here) if it is,
-    else the Tutte embedding of the mesh with its holes fanned. Then :func:`polish` with the scaffold.
+    Start: of the MDS layout and the LSCM layout (``conformal()`` if given — the fill decision already computed it —
+    else computed here), the bijective one (no flipped face, no crossing of any boundary loop) with the lower
+    energy; if neither is bijective, the Tutte embedding of the mesh with its holes fanned. Then :func:`polish`
+    with the scaffold.
 
     Returns the refined layout (n,2) and a JSON-able report of what was done.
     """
@@ -500,14 +501,20 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=Non
     x = np.asarray(uv, dtype=np.float64)
     flips, cross = _is_bijective(x, F, g)
     report["start"] = {"flips": flips, "crossings": cross}
-    start = "mds"
-    if flips or cross:
-        x = np.array(conformal() if conformal is not None else conformal_start(V, F, disk))
-        flips, cross = _is_bijective(x, F, g)
-        report["start"].update(lscm_flips=flips, lscm_crossings=cross)
-        start = "lscm"
-        if flips or cross:
-            x, start = tutte(V, disk, backend)[:n], "tutte"
+    xl = np.array(conformal() if conformal is not None else conformal_start(V, F, disk))
+    lflips, lcross = _is_bijective(xl, F, g)
+    report["start"].update(lscm_flips=lflips, lscm_crossings=lcross)
+    # of the bijective candidates, start from the one with the lower energy: on developable parts LSCM (already
+    # computed by the fill decision) is an isometry up to round-off, where MDS needs 5-7 Newton iterations
+    cands = {name: c for name, c, ok in (("mds", x, not (flips or cross)), ("lscm", xl, not (lflips or lcross))) if ok}
+    if cands:
+        w = area / area.sum()
+        energy = {name: symmetric_dirichlet(jacobians(c, F, g), w)[0] / 4 for name, c in cands.items()}
+        start = min(energy, key=energy.get)
+        x = cands[start]
+        report["start"]["energy"] = energy
+    else:
+        x, start = tutte(V, disk, backend)[:n], "tutte"
     report["start"]["layout"] = start
     # open-ended: Newton stops when converged (5-50 iterations measured), far below the cap
     bar = progress.bar(None, "polish (Newton)") if progress is not None else None
