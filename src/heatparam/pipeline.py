@@ -49,8 +49,8 @@ class Options:
     stress_sources : number of sources for the sampled Eq. 1 stress in the report.
     fill_depth : Poisson reconstruction depth for the fill (0 = automatic from the mesh size).
     refine : post-MDS refinement: ``sd`` (bijective symmetric Dirichlet polish at true scale inside a scaffold,
-        from the MDS layout, or from LSCM / Tutte where that is not bijective; docs/refine.md) or ``none`` (raw MDS
-        map).
+        from the lower-energy bijective one of the MDS and LSCM layouts, else from Tutte; docs/refine.md) or
+        ``none`` (raw MDS map).
     stress : ``smacof`` = stress majorization of the raw stress of Eq. 1 (``mds.smacof``) on the MDS layout,
         before refinement, with the distances MDS used (all-pairs: every pair; landmarks: the n×k point-landmark
         pairs; fill: the points and M*'s vertices against the landmarks on M*); ``none`` (default, from the

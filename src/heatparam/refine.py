@@ -3,10 +3,10 @@
 Classical MDS minimizes strain (Eq. 13), not the stress of Eq. 1, and folds on strongly curved disks. This
 stage turns the raw MDS layout into a bijective map at true scale:
 
-1. **Start.** The MDS layout when it has no flipped triangle and no boundary crossing (any loop); otherwise the
-   free-boundary LSCM layout scaled to the 3D area if that is bijective; else a uniform Tutte embedding of the
-   mesh with every hole closed by a fan (outer loop on a circle of the surface's perimeter), bijective by
-   Tutte's theorem.
+1. **Start.** Of the MDS layout and the free-boundary LSCM layout scaled to the 3D area, the bijective one (no
+   flipped triangle, no boundary crossing on any loop) with the lower energy (on developable parts LSCM is an
+   isometry to round-off); if neither is bijective, a uniform Tutte embedding of the mesh with every hole closed
+   by a fan (outer loop on a circle of the surface's perimeter), bijective by Tutte's theorem.
 2. **Polish.** Symmetric Dirichlet energy Σ A_f (|J|² + |J⁻¹|²), no rescaling (its minimum is the isometry
    itself), minimized by projected Newton with the closed-form Hessian eigensystem of Smith et al. 2019
    (:func:`sd_eigensystem`; the PSD projection is a clamp of one eigenvalue) and one sparse Cholesky reused as a
