@@ -372,8 +372,9 @@ def lscm(V: np.ndarray, F: np.ndarray, pinned: np.ndarray, pinned_uv: np.ndarray
     fixed = np.concatenate([pinned, pinned + n])
     free = np.setdiff1d(np.flatnonzero(np.concatenate([used, used])), fixed)
     xp = np.concatenate([pinned_uv[:, 0], pinned_uv[:, 1]])
-    rhs = -(Q[free][:, fixed] @ xp)
-    Qff = Q[free][:, free]
+    Qf = Q[free]
+    rhs = -(Qf[:, fixed] @ xp)
+    Qff = Qf[:, free]
     x = np.zeros(2 * n)
     x[fixed] = xp
     try:

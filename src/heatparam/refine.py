@@ -417,7 +417,6 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
         D, Ds = jacobians(d, F, g), jacobians(np.vstack([d, np.zeros((4, 2))]), sc.F, gs)
         tmax = 0.9 * min(max_step(J, D), max_step(Js, Ds))
         t = min(1.0, tmax)
-
         for _ in range(40):
             E1 = _line_energy(t, J, D, w_surf, Js, Ds, ws)
             if E1 < E0:
