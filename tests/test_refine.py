@@ -287,3 +287,18 @@ def test_polish_of_an_isometry_converges_at_once():
     x, info = refine.polish(V[:, :2].copy(), F, g, area, [disk.outer, *disk.holes])
     assert info["converged"] and info["stop"] == "converged" and info["iterations"] == 1
     assert np.array_equal(x, V[:, :2])
+
+
+def test_refine_survives_a_failing_lscm_candidate():
+    """LSCM is only a candidate start: when it fails, the bijective MDS start (or Tutte) still serves."""
+    from heatparam.errors import HeatparamError
+
+    s = shapes.cylinder_patch(h=0.1)
+
+    def broken():
+        raise HeatparamError("the conformal (LSCM) layout failed")
+
+    uv_mds, _ = pipeline.parameterize(s.V, s.F, refine="none", fill="none")
+    uv, rep = refine.refine(s.V, s.F, uv_mds, conformal=broken)
+    assert rep["start"]["layout"] == "mds" and "lscm_failed" in rep["start"]
+    assert rep["bijective"] and shapes.layout_error(uv, s.uv_true) <= 1e-3

@@ -32,6 +32,7 @@ import scipy.sparse.linalg as spla
 from threadpoolctl import ThreadpoolController
 
 from heatparam import metrics
+from heatparam.errors import HeatparamError
 from heatparam.operators import edge_lengths, intrinsic_areas, local_triangles, mollify
 from heatparam.solvers import Factor, large_system_backend
 
@@ -500,12 +501,17 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=Non
     x = np.asarray(uv, dtype=np.float64)
     flips, cross = _is_bijective(x, F, g)
     report["start"] = {"flips": flips, "crossings": cross}
-    xl = np.array(conformal() if conformal is not None else conformal_start(V, F, disk))
-    lflips, lcross = _is_bijective(xl, F, g)
+    try:
+        xl = np.array(conformal() if conformal is not None else conformal_start(V, F, disk))
+        lflips, lcross = _is_bijective(xl, F, g)
+    except HeatparamError as exc:  # a degenerate mesh: LSCM is only a candidate start, MDS or Tutte still serve
+        xl, lflips, lcross = None, -1, -1
+        report["start"]["lscm_failed"] = str(exc)
     report["start"].update(lscm_flips=lflips, lscm_crossings=lcross)
     # of the bijective candidates, start from the one with the lower energy: on developable parts LSCM (already
     # computed by the fill decision) is an isometry up to round-off, where MDS needs 5-7 Newton iterations
-    cands = {name: c for name, c, ok in (("mds", x, not (flips or cross)), ("lscm", xl, not (lflips or lcross))) if ok}
+    lscm_ok = xl is not None and not (lflips or lcross)
+    cands = {name: c for name, c, ok in (("mds", x, not (flips or cross)), ("lscm", xl, lscm_ok)) if ok}
     if cands:
         w = area / area.sum()
         energy = {name: symmetric_dirichlet(jacobians(c, F, g), w)[0] / 4 for name, c in cands.items()}
