@@ -364,7 +364,7 @@ def lscm(V: np.ndarray, F: np.ndarray, pinned: np.ndarray, pinned_uv: np.ndarray
     # M: A(x) = xᵀ M x with x = (u, v); each half-edge adds u_i v_j / 2 − u_j v_i / 2, split symmetrically
     r = np.concatenate([i, j + n, j, i + n])
     c = np.concatenate([j + n, i, i + n, j])
-    w = np.concatenate([np.full(len(i), 0.25), np.full(len(i), 0.25), np.full(len(i), -0.25), np.full(len(i), -0.25)])
+    w = np.repeat([0.25, 0.25, -0.25, -0.25], len(i))
     M = sp.csc_matrix((w, (r, c)), shape=(2 * n, 2 * n))
     Q = (sp.block_diag([K, K], format="csc") - 2.0 * M).tocsc()
     used = np.zeros(n, dtype=bool)
