@@ -71,6 +71,9 @@ def build_parser() -> argparse.ArgumentParser:
     u.add_argument("--refine", choices=REFINE_MODES, default=d.refine,
                    help="sd = flip-free symmetric Dirichlet polish at true scale with overlap checks; none = the "
                         "paper's raw MDS map (default: %(default)s)")
+    u.add_argument("--refine-multilevel", type=int, default=d.refine_multilevel, metavar="N",
+                   help="meshes of at least N vertices are polished coarse-to-fine (a ~1/8-size coarse mesh "
+                        "first; docs/refine.md); 0 = never (default: %(default)s)")
     u.add_argument("--stress", choices=STRESS_MODES, default=d.stress,
                    help="smacof = stress majorization of Eq. 1 on the geodesic distances after MDS, before "
                         "--refine (see BENCHMARKS.md §7); none = the MDS layout as is (default: %(default)s)")
@@ -123,7 +126,8 @@ def cmd_unwrap(args: argparse.Namespace) -> int:
     V, F = io.load_mesh(args.input)
     opts = Options(fill=args.fill, geodesics=args.geodesics, landmarks=args.landmarks, time_step=args.time_step,
                    t_coef=args.t_coef, solver=args.solver, seed=args.seed, refine=args.refine,
-                   stress=args.stress, fill_depth=args.fill_depth, progress=not args.quiet)
+                   refine_multilevel=args.refine_multilevel, stress=args.stress, fill_depth=args.fill_depth,
+                   progress=not args.quiet)
     result = parameterize(V, F, opts)
     uv, report = result
     report["input"] = str(args.input)

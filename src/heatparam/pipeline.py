@@ -21,11 +21,11 @@ from heatparam.memory import peak_rss_bytes, require
 from heatparam.mesh import MeshInfo, validate_mesh
 from heatparam.operators import MASS_KINDS, build_operators
 from heatparam.progress import Progress
+from heatparam.refine import MULTILEVEL_MIN_VERTICES, REFINE_MODES
 from heatparam.solvers import BACKENDS
 
 FILL_MODES = ("auto", "poisson", "biharmonic", "none")
 GEODESIC_MODES = ("auto", "all-pairs", "landmarks")
-REFINE_MODES = ("none", "sd")
 STRESS_MODES = ("none", "smacof")
 
 
@@ -55,6 +55,8 @@ class Options:
         before refinement, with the distances MDS used (all-pairs: every pair; landmarks: the n×k point-landmark
         pairs; fill: the points and M*'s vertices against the landmarks on M*); ``none`` (default, from the
         measurement in BENCHMARKS.md §7).
+    refine_multilevel : meshes with at least this many vertices are polished coarse-to-fine (a coarse mesh of
+        about 1/8 of the vertices is polished first and prolongated; ``refine.coarse_to_fine``); 0 = never.
     refine_iters : iteration cap of the symmetric Dirichlet polish.
     refine_tol : the polish stops when an iteration lowers the energy by less than this fraction.
     progress : show stage messages and progress bars on stderr.
@@ -73,6 +75,7 @@ class Options:
     fill_depth: int = 0
     refine: str = "sd"
     stress: str = "none"
+    refine_multilevel: int = MULTILEVEL_MIN_VERTICES
     refine_iters: int = 200
     refine_tol: float = 1e-6
     progress: bool = False
@@ -91,6 +94,8 @@ class Options:
             raise HeatparamError(f"landmarks must be 0 (automatic) or at least 3, got {self.landmarks}")
         _choice("refine", self.refine, REFINE_MODES)
         _choice("stress", self.stress, STRESS_MODES)
+        if self.refine_multilevel < 0:
+            raise HeatparamError(f"refine_multilevel must be 0 (never) or a vertex count, got {self.refine_multilevel}")
         if self.fill_depth < 0:
             raise HeatparamError(f"fill_depth must be 0 (automatic) or positive, got {self.fill_depth}")
         if not self.t_coef > 0:
