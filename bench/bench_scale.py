@@ -41,7 +41,8 @@ print(json.dumps({"import": t1 - t0, "load": t2 - t1, "parameterize": t3 - t2, "
                   "flips": m["flips"], "crossings": m["boundary_crossings"], "iso": m["iso_mean"],
                   "k": rep["parameters"]["landmarks_used"], "mode": rep["method"]["geodesics"],
                   "backend": rep["method"]["solver_backend"],
-                  "polish": rep["method"]["refine"].get("polish", {})}))
+                  "polish": rep["method"]["refine"].get("polish", {}),
+                  "multilevel": rep["method"]["refine"].get("multilevel", {})}))
 """
 
 PEER = PEAK_RSS + """
@@ -255,6 +256,14 @@ def scale_table(args, save_uv_obj) -> None:
                     if pol:
                         note += (f"; polish: {pol['iterations']} it, {pol['factorizations']} factorizations "
                                  f"({pol['backend']})")
+                    ml = r.get("multilevel") or {}
+                    if ml.get("used"):
+                        cp = ml["coarse_polish"]
+                        note += (f"; coarse-to-fine: coarse {ml['coarse_vertices']} vertices, {cp['iterations']} it "
+                                 f"{cp['seconds']:.1f} s, {ml['prolongation_flips']} prolongated faces flipped, "
+                                 f"repaired in {ml['repair_rounds']} round(s)")
+                    elif ml:
+                        note += f"; single level ({ml.get('reason', '')})"
                     if len(r["times"]["end_to_end"]) > 1:
                         note = f"median of {len(r['times']['end_to_end'])} runs; first run: " + note
                 print(f"| {label} | {len(V)} | {name} | {sec:.2f} | {ratio:.2f} | {r['peak_mb']:.0f} | {r['flips']} "
