@@ -174,6 +174,14 @@ def test_all_pairs_guard(tmp_path, patch_off, capsys, monkeypatch):
     assert "GiB" in err and "landmarks" in err and not out.exists()
 
 
+def test_negative_refine_multilevel_is_refused(tmp_path, patch_off, capsys):
+    src, _ = patch_off
+    out = tmp_path / "o.obj"
+    assert main(["unwrap", str(src), "-o", str(out), "--refine-multilevel", "-1", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "refine_multilevel" in err and len(err.strip().splitlines()) == 1 and not out.exists()
+
+
 def test_fill_options_reach_the_report(tmp_path):
     from heatparam import shapes as sh
 

@@ -695,8 +695,11 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=Non
     e_start = report["start"].get("energy", {}).get(start, np.inf)
     with ThreadpoolController().select(internal_api="openblas").limit(limits=1):
         if 0 < ml_min <= n and e_start > 1.0 + MULTILEVEL_MIN_EXCESS:
-            y, report["multilevel"] = coarse_to_fine(V, F, x, loops, g, max_iters=max_iters, tol=tol,
-                                                     backend=backend, progress=progress)
+            try:
+                y, report["multilevel"] = coarse_to_fine(V, F, x, loops, g, max_iters=max_iters, tol=tol,
+                                                         backend=backend, progress=progress)
+            except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:  # only a faster start: never fatal
+                y, report["multilevel"] = None, {"used": False, "reason": f"coarse level failed: {exc}"}
             if y is not None:
                 x = y
         else:
