@@ -241,6 +241,17 @@ DECREMENT_TOL = 1e-3  # converged at once when the Newton decrement predicts les
 STALL_ITERS = 5  # the polish gives up after this many barrier-limited iterations in a row that gain < tol
 
 
+def _loop_ranges(loops: list[np.ndarray]) -> list[np.ndarray]:
+    """Where each loop sits in ``np.concatenate(loops)``: one index range per loop."""
+    ends = np.cumsum([len(lp) for lp in loops])
+    return [np.arange(e - len(lp), e) for e, lp in zip(ends, loops, strict=True)]
+
+
+def _loop_edges(ranges: list[np.ndarray]) -> np.ndarray:
+    """Closed-polygon edges (e,2) of the index ranges of :func:`_loop_ranges`."""
+    return np.vstack([np.column_stack([k, np.roll(k, -1)]) for k in ranges])
+
+
 class Scaffold(NamedTuple):
     F: np.ndarray  # (s,3) triangles over [surface vertices 0..n-1, then the box corners n..n+3]
     box: np.ndarray  # (4,2) box corners, fixed while this scaffold is used
@@ -262,14 +273,9 @@ def build_scaffold(uv: np.ndarray, loops: list[np.ndarray]) -> Scaffold:
     lo, hi = P.min(axis=0), P.max(axis=0)
     c, r = 0.5 * (lo + hi), (0.5 + SCAFFOLD_MARGIN) * float((hi - lo).max())
     box = c + r * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
-    E, s = [], 0
-    for lp in loops:
-        k = np.arange(s, s + len(lp))
-        E.append(np.column_stack([k, np.roll(k, -1)]))
-        s += len(lp)
-    E.append(len(ids) + np.array([[0, 1], [1, 2], [2, 3], [3, 0]]))
+    E = np.vstack([_loop_edges(_loop_ranges(loops)), len(ids) + np.array([[0, 1], [1, 2], [2, 3], [3, 0]])])
     try:
-        P2, T = gpy.triangulate_polygon(np.vstack([P, box]), np.vstack(E), a=0.0, q=0.0, steiner=False)
+        P2, T = gpy.triangulate_polygon(np.vstack([P, box]), E, a=0.0, q=0.0, steiner=False)
     except (ValueError, RuntimeError) as exc:  # CDT: crossing constraints, duplicate points
         raise ValueError(f"cannot triangulate the scaffold (boundary loops touch or cross): {exc}") from exc
     if len(P2) != len(ids) + 4:
@@ -502,14 +508,9 @@ def coarse_mesh(uv: np.ndarray, loops: list[np.ndarray], ids: np.ndarray) -> np.
     counter-clockwise. ``uv`` (n,2) must be bijective, so the coarse faces tile the same region of the plane."""
     import gpytoolbox as gpy
 
-    E, s = [], 0
-    for lp in loops:
-        k = np.arange(s, s + len(lp))
-        E.append(np.column_stack([k, np.roll(k, -1)]))
-        s += len(lp)
     P = uv[ids]
     try:
-        P2, T = gpy.triangulate_polygon(P, np.vstack(E), a=0.0, q=0.0, steiner=False)
+        P2, T = gpy.triangulate_polygon(P, _loop_edges(_loop_ranges(loops)), a=0.0, q=0.0, steiner=False)
     except (ValueError, RuntimeError) as exc:
         raise ValueError(f"coarse triangulation failed: {exc}") from exc
     if len(P2) != len(ids):
@@ -607,10 +608,7 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
     except ValueError as exc:
         return None, info | {"used": False, "reason": str(exc)}
     gc, ac = surface_gradients(V[ids], T)
-    cloops, s = [], 0
-    for lp in loops:
-        cloops.append(np.arange(s, s + len(lp)))
-        s += len(lp)
+    cloops = _loop_ranges(loops)  # the coarse mesh's boundary loops: its first vertices, in loop order
     bar = progress.bar(None, f"polish (coarse, {len(ids)} vertices)") if progress is not None else None
     try:
         xc, cinfo = polish(x[ids], T, gc, ac, cloops, max_iters=max_iters, tol=tol, backend=backend, bar=bar)
@@ -693,6 +691,8 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=Non
     ml_min = int(getattr(opts, "refine_multilevel", MULTILEVEL_MIN_VERTICES))
     loops = [disk.outer, *disk.holes]
     e_start = report["start"].get("energy", {}).get(start, np.inf)
+    # One OpenBLAS thread: the polish's vector work is small, and OpenBLAS threads on it cost 10-60% on 2 cores
+    # (2.2 s vs 2.5 s on camelhead alone, 6.2 s with another process busy). MKL (PARDISO) keeps its threads.
     with ThreadpoolController().select(internal_api="openblas").limit(limits=1):
         if 0 < ml_min <= n and e_start > 1.0 + MULTILEVEL_MIN_EXCESS:
             try:
@@ -705,14 +705,10 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=Non
         else:
             report["multilevel"] = {"used": False, "reason": "small mesh" if not 0 < ml_min <= n
                                     else "the start is already within 1% of an isometry"}
-    # open-ended: Newton stops when converged (5-50 iterations measured), far below the cap
-    bar = progress.bar(None, "polish (Newton)") if progress is not None else None
-    # One OpenBLAS thread: the polish's vector work is small, and OpenBLAS threads on it cost 10-60% on 2 cores
-    # (2.2 s vs 2.5 s on camelhead alone, 6.2 s with another process busy). MKL (PARDISO) keeps its threads.
-    with ThreadpoolController().select(internal_api="openblas").limit(limits=1):
+        # open-ended: Newton stops when converged (5-50 iterations measured), far below the cap
+        bar = progress.bar(None, "polish (Newton)") if progress is not None else None
         try:
-            x, pinfo = polish(x, F, g, area, loops, max_iters=max_iters, tol=tol,
-                              backend=backend, bar=bar)
+            x, pinfo = polish(x, F, g, area, loops, max_iters=max_iters, tol=tol, backend=backend, bar=bar)
         finally:
             if bar is not None:
                 bar.close()
