@@ -340,7 +340,10 @@ class _Pattern:
 #: Cholesky factor; the Hessian is refactorized only when that takes more than PCG_MAX_ITERS iterations.
 PCG_RTOL = 1e-3
 PCG_MAX_ITERS = 12
-PCG_MAX_ITERS_PARDISO = 4  # with PARDISO's cheap factorizations the stale factor is kept for fewer CG steps
+#: With PARDISO no stale factor is tried: its refactorizations reuse the symbolic analysis (``Factor.refactor``,
+#: ~0.55 s at 363k unknowns), about 4 of its CG steps (a solve + a product, ~0.13 s each), and the stale factor
+#: needed 6-30 steps there (camelhead↑180k fine polish 13.1 s with the attempt, 10.5 s without)
+PCG_MAX_ITERS_PARDISO = 0
 
 
 def _newton_direction(H: sp.csc_matrix, rhs: np.ndarray, fac: Factor | None, backend: str
@@ -351,13 +354,13 @@ def _newton_direction(H: sp.csc_matrix, rhs: np.ndarray, fac: Factor | None, bac
     preconditioned CG steps with the previous factor usually reach PCG_RTOL for a fraction of the cost.
     Returns (dx, the factor used, 1 if it was refactorized else 0).
     """
-    if fac is not None:
+    cap = PCG_MAX_ITERS_PARDISO if backend == "pardiso" else PCG_MAX_ITERS
+    if fac is not None and cap > 0:
         prec = spla.LinearOperator(H.shape, matvec=fac.solve, dtype=np.float64)
-        cap = PCG_MAX_ITERS_PARDISO if backend == "pardiso" else PCG_MAX_ITERS
         dx, info = spla.cg(H, rhs, x0=fac.solve(rhs), rtol=PCG_RTOL, maxiter=cap, M=prec)
         if info == 0:
             return dx, fac, 0
-    fac = Factor(H, backend)
+    fac = Factor(H, backend) if fac is None else fac.refactor(H)
     return fac.solve(rhs), fac, 1
 
 
@@ -480,6 +483,10 @@ COARSE_MIN, COARSE_MAX = 8_000, 20_000  # ... within these bounds
 REPAIR_RINGS = 8  # each repair round re-solves the flipped faces' 8-ring neighbourhoods ...
 REPAIR_ROUNDS = 8  # ... at most this many rounds
 MULTILEVEL_MIN_EXCESS = 1e-2  # coarse-to-fine only when the start's energy exceeds 1 (isometry) by more than this
+#: After a converged coarse level the fine polish stops at this multiple of ``refine_tol``: its start is already
+#: within ~0.5% of the minimum, and at 1e-6 its last 2 of 7 Newton iterations (camelhead↑182k, ~2.5 s each) gained
+#: < 1e-5 of the energy together and no metric to 4 digits (iso mean 2.05884 at 1e-4 and 1e-6; docs/refine.md)
+MULTILEVEL_FINE_TOL_FACTOR = 100.0
 
 
 def coarse_vertices(V: np.ndarray, F: np.ndarray, loops: list[np.ndarray], target: int) -> np.ndarray:
@@ -702,6 +709,9 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=Non
                 y, report["multilevel"] = None, {"used": False, "reason": f"coarse level failed: {exc}"}
             if y is not None:
                 x = y
+                if report["multilevel"]["coarse_polish"]["converged"]:
+                    tol *= MULTILEVEL_FINE_TOL_FACTOR
+                report["multilevel"]["fine_tol"] = tol
         else:
             report["multilevel"] = {"used": False, "reason": "small mesh" if not 0 < ml_min <= n
                                     else "the start is already within 1% of an isometry"}

@@ -1,0 +1,76 @@
+"""Sparse SPD factorizations: backends and refactorization with a reused analysis (``solvers``)."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from heatparam import solvers
+from heatparam.solvers import Factor, available_backends
+
+
+def _spd(n: int = 400, seed: int = 0) -> sp.csc_matrix:
+    """A random SPD matrix: a path-graph Laplacian plus random extra edges, plus the identity."""
+    rng = np.random.default_rng(seed)
+    i = np.concatenate([np.arange(n - 1), rng.integers(0, n, 3 * n)])
+    j = np.concatenate([np.arange(1, n), rng.integers(0, n, 3 * n)])
+    keep = i != j
+    W = sp.coo_matrix((rng.uniform(0.5, 2.0, keep.sum()), (i[keep], j[keep])), shape=(n, n)).tocsr()
+    W = W + W.T
+    return (sp.diags(np.asarray(W.sum(axis=1)).ravel() + 1.0) - W).tocsc()
+
+
+def _drop_pair(A: sp.spmatrix, r: int, c: int) -> sp.csc_matrix:
+    """A with the symmetric pair (r,c), (c,r) removed from its pattern (diagonal made dominant again)."""
+    A = sp.lil_matrix(A)
+    A[r, r] += abs(A[r, c])
+    A[c, c] += abs(A[r, c])
+    A[r, c] = A[c, r] = 0.0
+    A = sp.csc_matrix(A)
+    A.eliminate_zeros()
+    return A
+
+
+def test_on_union_places_values_and_keeps_the_old_pattern():
+    P = sp.csr_matrix(np.array([[1.0, 2.0, 0.0], [0.0, 3.0, 4.0], [0.0, 0.0, 5.0]]))
+    T = sp.csr_matrix(np.array([[7.0, 0.0, 8.0], [0.0, 9.0, 0.0], [0.0, 0.0, 6.0]]))
+    U = solvers._on_union(P, T)
+    assert U.nnz == 6  # P's 5 entries and T's (0,2)
+    assert np.array_equal(U.toarray(), T.toarray())  # T's values; explicit zeros at (0,1) and (1,2)
+    assert U.indices[U.indptr[0] : U.indptr[1]].tolist() == [0, 1, 2]
+    assert U.indices[U.indptr[1] : U.indptr[2]].tolist() == [1, 2]
+    assert solvers._on_union(P, P).nnz == P.nnz
+
+
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="pypardiso not installed")
+def test_pardiso_refactor_reuses_the_analysis_while_the_pattern_fits():
+    rng = np.random.default_rng(1)
+    A = _spd()
+    b = rng.standard_normal(A.shape[0])
+    f = Factor(A, "pardiso")
+    A2 = A + sp.diags(rng.uniform(0.0, 1.0, A.shape[0]))  # same pattern, new values
+    f2 = f.refactor(A2)
+    assert f2 is f and np.allclose(A2 @ f2.solve(b), b, atol=1e-9)
+    r, c = A.indices[A.indptr[5]], 5  # an entry of column 5 ...
+    r = r if r != c else A.indices[A.indptr[5] + 1]  # ... off the diagonal
+    A3 = _drop_pair(A2, r, c)  # a smaller pattern: still within the analysed one
+    assert A3.nnz < A2.nnz
+    f3 = f2.refactor(A3)
+    assert f3 is f and np.allclose(A3 @ f3.solve(b), b, atol=1e-9)
+    A4 = A3 + sp.coo_matrix(([-0.1, -0.1, 0.2, 0.2], ([0, 399, 0, 399], [399, 0, 0, 399])), shape=A.shape)
+    f4 = f3.refactor(A4)  # (0,399) is new: analysed again, on the union of both patterns
+    assert f4 is not f and np.allclose(A4 @ f4.solve(b), b, atol=1e-9)
+    assert f4.refactor(A3) is f4  # A3's pattern lies within that union
+    assert np.allclose(A3 @ f4.solve(b), b, atol=1e-9)
+
+
+@pytest.mark.parametrize("backend", ["cholespy", "scipy"])
+def test_refactor_with_other_backends_is_a_new_factorization(backend):
+    if backend not in available_backends():
+        pytest.skip(f"{backend} not installed")
+    A = _spd(seed=2)
+    b = np.ones(A.shape[0])
+    f = Factor(A, backend)
+    A2 = 2.0 * A
+    f2 = f.refactor(A2)
+    assert f2 is not f and f2.backend == backend
+    assert np.allclose(A2 @ f2.solve(b), b, atol=1e-9) and np.allclose(A @ f.solve(b), b, atol=1e-9)
