@@ -364,7 +364,8 @@ def test_coarse_to_fine_on_a_surface_with_holes_is_bijective():
     disk = refine.build_disk(s.V, s.F)
     loops = [disk.outer, *disk.holes]
     x0 = refine.conformal_start(s.V, s.F, disk)
-    y, info = refine.coarse_to_fine(s.V, s.F, x0, loops, g, max_iters=200, tol=1e-6, backend="auto")
+    y, info = refine.coarse_to_fine(s.V, s.F, x0, loops, g, min_vertices=0, max_iters=200, tol=1e-6,
+                                    backend="auto")
     assert info["used"] and y is not None, info
     assert info["coarse_vertices"] < len(s.V) and info["coarse_polish"]["converged"]
     assert refine._is_bijective(y, s.F, g) == (0, 0)

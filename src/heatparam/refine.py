@@ -371,7 +371,8 @@ def _line_energy(t: float, J: np.ndarray, D: np.ndarray, w: np.ndarray, Js: np.n
 
 
 def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray], *,
-           max_iters: int = 200, tol: float = 1e-6, backend: str = "auto", bar=None) -> tuple[np.ndarray, dict]:
+           max_iters: int = 200, tol: float = 1e-6, backend: str = "auto", bar=None,
+           guards: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
     """Minimize the symmetric Dirichlet energy Σ A_f Ψ(J_f) from a bijective layout ``uv`` (n,2), keeping it bijective.
 
     Projected Newton on the surface energy plus a scaffold energy (:func:`build_scaffold`, rebuilt around the
@@ -382,7 +383,9 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
     it while that lowers the energy further (camelhead: 18 → 14 iterations). Converged when an uncut step
     (≥ half the Newton step) lowers the surface energy by less than ``tol`` of it; gives up after
     ``STALL_ITERS`` barrier-limited steps in a row that gain less. g (m,3,2): hat gradients of the rest triangles;
-    area (m,): their areas; loops: boundary loops, outer first. Returns the layout (n,2) and a JSON-able report.
+    area (m,): their areas; loops: boundary loops, outer first; guards (k,3): extra triangles, positive in ``uv``,
+    that carry no energy but stay positive like the others (a finer level's triangles whose three corners all lie
+    on the boundary: see :func:`coarse_to_fine`). Returns the layout (n,2) and a JSON-able report.
     """
     t0 = time.perf_counter()
     n = len(uv)
@@ -397,6 +400,8 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
     small, full_step = 0, 0.5  # a step of at least half the Newton step counts as uncut
     J = jacobians(x, F, g)  # surface Jacobians and energy of the current layout, carried from step to step
     Es = symmetric_dirichlet(J, w_surf)[0]
+    guards = np.zeros((0, 3), dtype=np.int64) if guards is None else guards
+    gg = hat_gradients(x[guards])  # any positive rest triangle will do: only the sign of det J is watched
     while it < max_iters:
         it += 1
         try:
@@ -426,7 +431,7 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
             break
         d = np.column_stack([dx[:n], dx[n:]])
         D, Ds = jacobians(d, F, g), jacobians(np.vstack([d, np.zeros((4, 2))]), sc.F, gs)
-        tmax = 0.9 * min(max_step(J, D), max_step(Js, Ds))
+        tmax = 0.9 * min(max_step(J, D), max_step(Js, Ds), max_step(jacobians(x, guards, gg), jacobians(d, guards, gg)))
         t = min(1.0, tmax)
         for _ in range(40):
             E1 = _line_energy(t, J, D, w_surf, Js, Ds, ws)
@@ -478,10 +483,11 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
 # coarse-to-fine: polish a coarse mesh, prolongate, repair the few flips, polish the fine mesh from there
 # ----------------------------------------------------------------------------------------------------------
 MULTILEVEL_MIN_VERTICES = 30_000  # default of Options.refine_multilevel: meshes this large polish coarse-to-fine
-COARSE_FRACTION = 1 / 8  # the coarse mesh has about this fraction of the vertices ...
-COARSE_MIN, COARSE_MAX = 8_000, 20_000  # ... within these bounds
+COARSE_FRACTION = 1 / 8  # each coarser level has about this fraction of the vertices (camelhead↑727k: at 1/27 the
+#                          repair of the prolongation's flips failed, at 1/6.5 it needed 7 rounds) ...
+COARSE_MIN = 8_000  # ... but at least this many; levels of >= refine_multilevel vertices get a coarser level too
 REPAIR_RINGS = 8  # each repair round re-solves the flipped faces' 8-ring neighbourhoods ...
-REPAIR_ROUNDS = 8  # ... at most this many rounds
+REPAIR_ROUNDS = 12  # ... at most this many rounds
 MULTILEVEL_MIN_EXCESS = 1e-2  # coarse-to-fine only when the start's energy exceeds 1 (isometry) by more than this
 #: After a converged coarse level the fine polish stops at this multiple of ``refine_tol``: its start is already
 #: within ~0.5% of the minimum, and at 1e-6 its last 2 of 7 Newton iterations (camelhead↑182k, ~2.5 s each) gained
@@ -568,8 +574,10 @@ def repair_flips(x: np.ndarray, ref: np.ndarray, F: np.ndarray, g: np.ndarray, l
                  ) -> tuple[np.ndarray | None, int, int]:
     """Unflip the few faces a prolongation flips (needle triangles straddling a coarse edge): re-solve the union of
     the flipped faces' ``REPAIR_RINGS``-ring neighbourhoods as mean value (Floater) interpolants with the weights
-    of the bijective layout ``ref`` (n,2) (the start: locally an affine image of it is flip-free; weights of the
-    3D surface measured worse, camelhead↑45k start energy 1.891 vs 1.877) and the rest of ``x`` (n,2) as
+    of the layout ``ref`` (n,2) (the bijective start: locally an affine image of it is flip-free; weights of the
+    3D surface measured worse, camelhead↑45k start energy 1.891 vs 1.877; or ``x`` itself, which those weights
+    reproduce wherever its vertex stars are valid: the fallback, start energy 2.88 vs 1.87 at 182k) and the rest
+    of ``x`` (n,2) as
     boundary values; grow the union around what is still flipped, at most ``REPAIR_ROUNDS`` times.
     ``locked`` (n,) bool: vertices never moved.
     Returns (layout or None when flips remain, faces flipped at first, rounds)."""
@@ -597,43 +605,101 @@ def repair_flips(x: np.ndarray, ref: np.ndarray, F: np.ndarray, g: np.ndarray, l
     return None, first, REPAIR_ROUNDS
 
 
+def boundary_faces(F: np.ndarray, boundary: np.ndarray) -> np.ndarray:
+    """The triangles of F (m,3) whose three corners are all boundary vertices (``boundary`` (n,) bool), (k,3)."""
+    return F[boundary[F].all(axis=1)]
+
+
 def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.ndarray], g: np.ndarray,
-                   *, max_iters: int, tol: float, backend: str, progress=None) -> tuple[np.ndarray | None, dict]:
+                   *, min_vertices: int, max_iters: int, tol: float, backend: str, progress=None,
+                   guards: np.ndarray | None = None) -> tuple[np.ndarray | None, dict]:
     """A start for the fine polish from a coarse one: :func:`coarse_vertices` and :func:`coarse_mesh` in the
-    bijective layout ``x`` (n,2), :func:`polish` on the coarse mesh from ``x``, :func:`prolongate`,
-    :func:`repair_flips`. Returns (layout (n,2) or None when no bijective one came out, report)."""
+    bijective layout ``x`` (n,2), :func:`multilevel_polish` of the coarse mesh from ``x`` (itself coarse-to-fine
+    while a level has >= ``min_vertices`` vertices), :func:`prolongate`, :func:`repair_flips`.
+
+    Every level keeps all boundary vertices, which the repair never moves; so a triangle whose three corners are
+    boundary vertices (a corner "ear" of the scan; plenty in the coarse levels' own triangulations) could come out
+    of the coarse polish flipped, beyond repair, unless the coarse polish keeps it positive: such triangles of this
+    level (and its own ``guards`` (k,3)) are passed down as guards, triangles without energy that the line search
+    keeps positive. Returns (layout (n,2) or None when no bijective one came out, report).
+    """
     t0 = time.perf_counter()
     n = len(V)
-    target = int(min(max(COARSE_FRACTION * n, COARSE_MIN), COARSE_MAX))
+    target = int(max(COARSE_FRACTION * n, COARSE_MIN))
     ids = coarse_vertices(V, F, loops, target)
     nb = sum(len(lp) for lp in loops)
     info: dict = {"coarse_vertices": int(len(ids)), "boundary_vertices": int(nb)}
     if nb > target // 2:
         return None, info | {"used": False, "reason": "the boundary alone has more than half the coarse vertices"}
+    if len(ids) >= n:
+        return None, info | {"used": False, "reason": "the coarse mesh would not be coarser"}
     try:
         T = coarse_mesh(x, loops, ids)
     except ValueError as exc:
         return None, info | {"used": False, "reason": str(exc)}
     gc, ac = surface_gradients(V[ids], T)
     cloops = _loop_ranges(loops)  # the coarse mesh's boundary loops: its first vertices, in loop order
-    bar = progress.bar(None, f"polish (coarse, {len(ids)} vertices)") if progress is not None else None
-    try:
-        xc, cinfo = polish(x[ids], T, gc, ac, cloops, max_iters=max_iters, tol=tol, backend=backend, bar=bar)
-    finally:
-        if bar is not None:
-            bar.close()
-    info["coarse_polish"] = cinfo
-    y = prolongate(x, x[ids], T, xc)
-    y[ids] = xc
     locked = np.zeros(n, dtype=bool)
     locked[ids[:nb]] = True  # the boundary is the coarse one: polished, bijective, kept as is
-    y, flipped, rounds = repair_flips(y, x, F, g, locked)
+    local = np.full(n, -1, dtype=np.int64)
+    local[ids] = np.arange(len(ids))
+    ears = boundary_faces(F if guards is None else np.vstack([F, guards]), locked)
+    xc, cinfo, cml = multilevel_polish(V[ids], T, x[ids], cloops, gc, ac, min_vertices=min_vertices,
+                                       max_iters=max_iters, tol=tol, backend=backend, progress=progress,
+                                       guards=local[ears], label=f"coarse, {len(ids)} vertices")
+    info.update(coarse_polish=cinfo, coarse_multilevel=cml, guards=int(len(ears)))
+    y = prolongate(x, x[ids], T, xc)
+    y[ids] = xc
+    z, flipped, rounds = repair_flips(y, x, F, g, locked)
+    info["repair_weights"] = "start layout"
+    if z is None:
+        # the start's weights fail where the start is far from an affine image of the result (LSCM's scale varies
+        # a lot across a repair region: camelhead↑727k's 111k-vertex level, 4 flips grew to 443); weights of the
+        # prolongated layout itself keep it wherever its stars are valid, and unfold the rest (1 round there)
+        z, _, rounds = repair_flips(y, y, F, g, locked)
+        info["repair_weights"] = "prolongated layout"
+    y = z
     info.update(prolongation_flips=flipped, repair_rounds=rounds, seconds=round(time.perf_counter() - t0, 3))
     if y is None:
         return None, info | {"used": False, "reason": f"{flipped} prolongated faces still flipped after repair"}
     if metrics.boundary_crossings(y, F):  # cannot happen with the coarse boundary kept; checked, not assumed
         return None, info | {"used": False, "reason": "the prolongated boundary crosses itself"}
     return y, info | {"used": True}
+
+
+def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.ndarray], g: np.ndarray,
+                      area: np.ndarray, *, min_vertices: int, max_iters: int, tol: float, backend: str,
+                      progress=None, guards: np.ndarray | None = None, label: str = "Newton"
+                      ) -> tuple[np.ndarray, dict, dict]:
+    """:func:`polish` of (V (n,3), F (m,3)) from the bijective layout ``x`` (n,2); coarse-to-fine
+    (:func:`coarse_to_fine`) when the mesh has >= ``min_vertices`` (> 0) vertices and ``x`` is more than
+    ``MULTILEVEL_MIN_EXCESS`` above an isometry. After a converged coarse level the polish stops at
+    ``MULTILEVEL_FINE_TOL_FACTOR`` × ``tol``. Returns (layout (n,2), polish report, coarse-to-fine report)."""
+    e = symmetric_dirichlet(jacobians(x, F, g), area / area.sum())[0] / 4
+    if not 0 < min_vertices <= len(V):
+        ml: dict = {"used": False, "reason": "small mesh"}
+    elif not e > 1.0 + MULTILEVEL_MIN_EXCESS:
+        ml = {"used": False, "reason": "the start is already within 1% of an isometry"}
+    else:
+        try:
+            y, ml = coarse_to_fine(V, F, x, loops, g, min_vertices=min_vertices, max_iters=max_iters, tol=tol,
+                                   backend=backend, progress=progress, guards=guards)
+        except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:  # only a faster start: never fatal
+            y, ml = None, {"used": False, "reason": f"coarse level failed: {exc}"}
+        if y is not None:
+            x = y
+            if ml["coarse_polish"]["converged"]:
+                tol *= MULTILEVEL_FINE_TOL_FACTOR
+            ml["fine_tol"] = tol
+    # open-ended: Newton stops when converged (5-50 iterations measured), far below the cap
+    bar = progress.bar(None, f"polish ({label})") if progress is not None else None
+    try:
+        x, pinfo = polish(x, F, g, area, loops, max_iters=max_iters, tol=tol, backend=backend, bar=bar,
+                          guards=guards)
+    finally:
+        if bar is not None:
+            bar.close()
+    return x, pinfo, ml
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -697,31 +763,12 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts=None, progress=Non
     report["start"]["layout"] = start
     ml_min = int(getattr(opts, "refine_multilevel", MULTILEVEL_MIN_VERTICES))
     loops = [disk.outer, *disk.holes]
-    e_start = report["start"].get("energy", {}).get(start, np.inf)
     # One OpenBLAS thread: the polish's vector work is small, and OpenBLAS threads on it cost 10-60% on 2 cores
     # (2.2 s vs 2.5 s on camelhead alone, 6.2 s with another process busy). MKL (PARDISO) keeps its threads.
     with ThreadpoolController().select(internal_api="openblas").limit(limits=1):
-        if 0 < ml_min <= n and e_start > 1.0 + MULTILEVEL_MIN_EXCESS:
-            try:
-                y, report["multilevel"] = coarse_to_fine(V, F, x, loops, g, max_iters=max_iters, tol=tol,
-                                                         backend=backend, progress=progress)
-            except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:  # only a faster start: never fatal
-                y, report["multilevel"] = None, {"used": False, "reason": f"coarse level failed: {exc}"}
-            if y is not None:
-                x = y
-                if report["multilevel"]["coarse_polish"]["converged"]:
-                    tol *= MULTILEVEL_FINE_TOL_FACTOR
-                report["multilevel"]["fine_tol"] = tol
-        else:
-            report["multilevel"] = {"used": False, "reason": "small mesh" if not 0 < ml_min <= n
-                                    else "the start is already within 1% of an isometry"}
-        # open-ended: Newton stops when converged (5-50 iterations measured), far below the cap
-        bar = progress.bar(None, "polish (Newton)") if progress is not None else None
-        try:
-            x, pinfo = polish(x, F, g, area, loops, max_iters=max_iters, tol=tol, backend=backend, bar=bar)
-        finally:
-            if bar is not None:
-                bar.close()
+        x, pinfo, report["multilevel"] = multilevel_polish(V, F, x, loops, g, area, min_vertices=ml_min,
+                                                           max_iters=max_iters, tol=tol, backend=backend,
+                                                           progress=progress)
     pinfo["method"] = "projected-newton + scaffold"
     report["polish"] = pinfo
     report["flips"] = int((_det(jacobians(x, F, g)) <= 0).sum())
