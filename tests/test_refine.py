@@ -389,3 +389,67 @@ def test_multilevel_polish_matches_single_level():
     # the fine level stops at the looser tolerance (the coarse one converged) and still lands on that minimum
     tol = pipeline.Options().refine_tol
     assert rep2["multilevel"]["fine_tol"] == pytest.approx(refine.MULTILEVEL_FINE_TOL_FACTOR * tol)
+
+
+def _dented_grid() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A flat 10 × 5 grid whose bottom-middle vertex b is dented inward in 3D (so the boundary triangle (a, b, c) of
+    its neighbours along the bottom side is clockwise in the isometric layout), and a bijective start layout with b
+    pushed outward instead (that triangle counter-clockwise). Returns V, F, start uv, the triangle (a, b, c)."""
+    nx, ny = 11, 6
+    X, Y = np.meshgrid(np.arange(nx, dtype=float), np.arange(ny, dtype=float), indexing="ij")
+    V = np.column_stack([X.ravel(), Y.ravel(), np.zeros(nx * ny)])
+    idx = np.arange(nx * ny).reshape(nx, ny)
+    p00, p10, p11, p01 = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    F = np.vstack([np.column_stack([p00, p10, p11]), np.column_stack([p00, p11, p01])]).astype(np.int64)
+    a, b, c = idx[4, 0], idx[5, 0], idx[6, 0]
+    V[b, 1] = 0.3
+    uv = V[:, :2].copy()
+    uv[b, 1] = -0.3
+    return V, F, uv, np.array([[a, b, c]])
+
+
+def test_polish_keeps_guard_triangles_positive():
+    """A guard triangle has no energy but the line search never lets it flip: here the isometry itself flips it."""
+    V, F, uv, ear = _dented_grid()
+    g, area = refine.surface_gradients(V, F)
+    loops = refine.metrics.boundary_loops(F)
+    assert refine._det(refine.jacobians(uv, ear, refine.hat_gradients(uv[ear])))[0] > 0
+    assert refine._is_bijective(uv, F, g) == (0, 0)
+
+    def ear_det(x):
+        e1, e2 = x[ear[0, 1]] - x[ear[0, 0]], x[ear[0, 2]] - x[ear[0, 0]]
+        return e1[0] * e2[1] - e1[1] * e2[0]
+
+    free, _ = refine.polish(uv, F, g, area, loops)
+    guarded, info = refine.polish(uv, F, g, area, loops, guards=ear)
+    assert ear_det(free) < 0 and shapes.layout_error(free, V[:, :2]) < 1e-4  # the isometry: the ear flipped
+    assert ear_det(guarded) > 0 and refine._is_bijective(guarded, F, g) == (0, 0)
+    assert info["energy_end"] > 1.0  # kept away from the isometry by the guard
+
+
+def test_boundary_faces():
+    V, F, _, ear = _dented_grid()
+    bnd = np.zeros(len(V), dtype=bool)
+    bnd[np.concatenate(refine.metrics.boundary_loops(F))] = True
+    B = refine.boundary_faces(F, bnd)
+    assert len(B) == 2 and bnd[B].all()  # the grid's two corner triangles with three boundary corners
+    assert not refine.boundary_faces(np.vstack([F, ear]), np.zeros(len(V), dtype=bool)).size
+
+
+def test_multilevel_polish_recurses_and_matches_single_level(monkeypatch):
+    """Three levels (coarse-to-fine inside the coarse level) on camelhead.off from LSCM, thresholds lowered so that
+    its 11k vertices get them: every level used, bijective, the same minimum as the plain polish."""
+    V, F = _load("camelhead.off")
+    g, area = refine.surface_gradients(V, F)
+    disk = refine.build_disk(V, F)
+    loops = [disk.outer, *disk.holes]
+    x0 = refine.conformal_start(V, F, disk)
+    monkeypatch.setattr(refine, "COARSE_MIN", 500)
+    kw = dict(max_iters=200, tol=1e-6, backend="auto")
+    x1, p1, ml1 = refine.multilevel_polish(V, F, x0, loops, g, area, min_vertices=0, **kw)
+    x3, p3, ml3 = refine.multilevel_polish(V, F, x0, loops, g, area, min_vertices=1000, **kw)
+    assert not ml1["used"] and ml1["reason"] == "small mesh"
+    assert ml3["used"] and ml3["coarse_multilevel"]["used"], ml3
+    assert len(V) > ml3["coarse_vertices"] > ml3["coarse_multilevel"]["coarse_vertices"]
+    assert refine._is_bijective(x3, F, g) == (0, 0) and p3["converged"]
+    assert p3["energy_end"] == pytest.approx(p1["energy_end"], rel=1e-4)
