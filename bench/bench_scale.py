@@ -199,6 +199,18 @@ STAGES = ("load", "validate", "fill decision", "operators", "factorize", "geodes
           "save", "end_to_end")
 
 
+def _levels_note(ml: dict) -> str:
+    """The coarse levels of a refine report's ``multilevel`` entry, finest first."""
+    parts = []
+    while ml.get("used"):
+        cp = ml["coarse_polish"]
+        parts.append(f"coarse {ml['coarse_vertices']} vertices, {cp['iterations']} it {cp['seconds']:.1f} s, "
+                     f"{ml['prolongation_flips']} prolongated faces flipped, repaired in {ml['repair_rounds']} "
+                     f"round(s) ({ml.get('repair_weights', 'start layout')} weights)")
+        ml = ml.get("coarse_multilevel") or {}
+    return "; then ".join(parts)
+
+
 def _heatparam_rows(path: Path, out: Path, options: dict, repeats: int) -> dict:
     """Run heatparam ``repeats`` times in fresh processes: the first run's fields, timings as lists."""
     runs = [run_isolated(HEATPARAM, {"mesh": str(path), "out": str(out), "options": options}) for _ in range(repeats)]
@@ -258,10 +270,7 @@ def scale_table(args, save_uv_obj) -> None:
                                  f"({pol['backend']})")
                     ml = r.get("multilevel") or {}
                     if ml.get("used"):
-                        cp = ml["coarse_polish"]
-                        note += (f"; coarse-to-fine: coarse {ml['coarse_vertices']} vertices, {cp['iterations']} it "
-                                 f"{cp['seconds']:.1f} s, {ml['prolongation_flips']} prolongated faces flipped, "
-                                 f"repaired in {ml['repair_rounds']} round(s)")
+                        note += "; coarse-to-fine: " + _levels_note(ml)
                     elif ml:
                         note += f"; single level ({ml.get('reason', '')})"
                     if len(r["times"]["end_to_end"]) > 1:

@@ -124,3 +124,21 @@ def test_euclidean_from_is_bit_identical_to_norm():
     VT = np.ascontiguousarray(V.T)
     for i in (0, 17, 2999):
         assert np.array_equal(_euclidean_from(VT, i), np.linalg.norm(V - V[i], axis=1))
+
+
+def test_large_meshes_factorize_with_pardiso_when_installed(disk, monkeypatch):
+    """From heat.PARDISO_MIN_VERTICES vertices (lowered here) the auto backend is PARDISO where installed, with the
+    same distances; an explicit backend is kept."""
+    from heatparam import heat
+    from heatparam.solvers import available_backends
+
+    V, F = disk
+    op = build_operators(V, F)
+    ref = HeatGeodesics(op, time_step(op))
+    assert ref.backend == available_backends()[0]  # small mesh: the default backend
+    monkeypatch.setattr(heat, "PARDISO_MIN_VERTICES", len(V))
+    big = HeatGeodesics(op, time_step(op))
+    assert big.backend == ("pardiso" if "pardiso" in available_backends() else available_backends()[0])
+    assert HeatGeodesics(op, time_step(op), backend="scipy").backend == "scipy"
+    D, D0 = big.distances([0, 7]), ref.distances([0, 7])
+    assert np.allclose(D, D0, rtol=0, atol=1e-10 * D0.max())

@@ -14,7 +14,7 @@ import scipy.sparse as sp
 
 from heatparam.memory import require
 from heatparam.operators import Operators
-from heatparam.solvers import Factor
+from heatparam.solvers import Factor, large_system_backend
 
 TIME_STEPS = ("default", "paper")
 
@@ -25,6 +25,11 @@ _BYTES_PER_COLUMN_VERTEX = 12 * 8
 #: 32-64 (the (2m,k) gradient block no longer stays in cache); ``bench/bench_solvers.py`` (second table)
 #: measures it. On ~180k vertices the batch width hardly matters (memory bound either way).
 MAX_BLOCK = 16
+#: Meshes of at least this many vertices factorize with PARDISO when it is installed (backend ``auto``): for the
+#: ~100 landmark sources of the pipeline, camelhead↑180k factorization 1.2 vs 3.0 s and 26-31 vs 25-38 ms per
+#: source, camelhead↑727k 5.9 vs 18.3 s and 206 vs 136 ms per source; below it CHOLMOD's faster solves win for
+#: many sources (45k: 0.24 vs 0.52 s, 4.9 vs 4.2 ms per source).
+PARDISO_MIN_VERTICES = 100_000
 
 
 def time_step(op: Operators, mode: str | float = "default", coef: float = 1.0) -> float:
@@ -63,6 +68,7 @@ class HeatGeodesics:
         self.op = op
         self.t = float(t)
         self.n = op.L.shape[0]
+        backend = large_system_backend(self.n, backend, PARDISO_MIN_VERTICES)
         self.heat = Factor((self.t * op.L + op.B).tocsc(), backend)  # Eq. 4
         # Eq. 10: L is singular (constants); its right-hand side sums to zero, so pinning vertex 0 and
         # solving the reduced SPD system gives the exact solution up to the constant fixed afterwards.

@@ -336,6 +336,10 @@ class _Pattern:
         return sp.csc_matrix((data, self.indices, self.indptr), shape=self.shape)
 
 
+#: The polish factorizes with PARDISO whenever it is installed (backend ``auto``): with its analysis reused and no
+#: iterative refinement it measured 0.8 vs 1.65 s on camelhead (11k), 6.1-6.5 vs 9.2-9.8 s on beetle (20k), 2.8-3.0
+#: vs 7.2 s on camelhead↑45k against CHOLMOD (cholespy) with lagged factors, and even on halftunnel (831 vertices)
+POLISH_PARDISO_MIN_UNKNOWNS = 0
 #: Newton directions are solved to this relative residual by conjugate gradients preconditioned with the last
 #: Cholesky factor; the Hessian is refactorized only when that takes more than PCG_MAX_ITERS iterations.
 PCG_RTOL = 1e-3
@@ -389,7 +393,7 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
     """
     t0 = time.perf_counter()
     n = len(uv)
-    backend = large_system_backend(2 * n, backend)
+    backend = large_system_backend(2 * n, backend, POLISH_PARDISO_MIN_UNKNOWNS)
     pat = _Pattern(F, n)
     w_surf = area / area.sum()
     w_scaf = w_max = SCAFFOLD_WEIGHT * float(w_surf.mean())

@@ -2,14 +2,15 @@
 
 Backends (``backend=``):
 - ``cholespy``: CHOLMOD Cholesky (simplicial or supernodal, CHOLMOD's choice) through the `cholespy` wheel (no
-  system SuiteSparse needed); solves many right-hand sides per call. The default when installed.
+  system SuiteSparse needed); solves many right-hand sides per call. The default for small heat-method systems.
 - ``scipy``: SuperLU (``scipy.sparse.linalg.splu``) — always available, the fallback.
-- ``pardiso``: Intel MKL PARDISO through `pypardiso`, if installed (x86-64 only; ``pip install heatparam[fast]``):
-  slower multi-column solves, but 4-5× faster factorization of the refinement's large Hessians (BENCHMARKS.md),
-  so :func:`large_system_backend` picks it for systems of ``PARDISO_MIN_UNKNOWNS`` or more unknowns (the
-  refinement's Hessians and the LSCM layout; not the heat-method solves, whose many right-hand sides favour CHOLMOD).
+- ``pardiso``: Intel MKL PARDISO through `pypardiso` (installed with heatparam on x86-64; MKL has no other
+  platforms): faster factorizations, a numerical refactorization that reuses the symbolic analysis
+  (:meth:`Factor.refactor`), and, with MKL's iterative refinement switched off, solves as fast as CHOLMOD's.
+  :func:`large_system_backend` picks it per use by measurement (BENCHMARKS.md §2, §4): the polish's Hessians at
+  every size, the heat-method systems from 100k vertices, the LSCM layout from 200k unknowns.
 
-``auto`` takes the first available of cholespy, scipy; BENCHMARKS.md has the measurements behind it.
+``auto`` takes the first available of cholespy, scipy (then PARDISO per :func:`large_system_backend`).
 """
 
 from __future__ import annotations
@@ -34,19 +35,18 @@ def available_backends() -> list[str]:
     return out
 
 
-#: Single-system solves with at least this many unknowns use PARDISO when it is installed and the backend is
-#: ``auto``. Measured on camelhead↑ refinement Hessians (BENCHMARKS.md §4): 91k unknowns PARDISO 0.8-1.0 s vs
-#: CHOLMOD (cholespy) 0.8-1.1 s per factorization, 363k unknowns 1.7 s vs 7.3-8.3 s; its solves are 1.4-2× slower.
+#: Default threshold of :func:`large_system_backend`: systems of at least this many unknowns use PARDISO when it is
+#: installed and the backend is ``auto`` (the LSCM layout: 196k-vertex cylinder patch 1.7 s vs 10.0 s for igl.lscm).
 PARDISO_MIN_UNKNOWNS = 200_000
 
 
-def large_system_backend(unknowns: int, backend: str = "auto") -> str:
-    """``backend`` unless ``auto``; then PARDISO for systems of ≥ PARDISO_MIN_UNKNOWNS unknowns when installed, else
+def large_system_backend(unknowns: int, backend: str = "auto", min_unknowns: int = PARDISO_MIN_UNKNOWNS) -> str:
+    """``backend`` unless ``auto``; then PARDISO for systems of ≥ ``min_unknowns`` unknowns when installed, else
     the default backend."""
     if backend != "auto":
         return backend
     avail = available_backends()
-    return "pardiso" if unknowns >= PARDISO_MIN_UNKNOWNS and "pardiso" in avail else avail[0]
+    return "pardiso" if unknowns >= min_unknowns and "pardiso" in avail else avail[0]
 
 
 class Factor:
@@ -78,6 +78,9 @@ class Factor:
             self._f = pypardiso.PyPardisoSolver(mtype=2)  # real symmetric positive definite
             _remember_mkl(self._f)
             self._f.factorize(self._T)
+            # MKL's defaults add 2 steps of iterative refinement to every solve (3x the work: 0.53 vs 0.19 s for 16
+            # columns on camelhead↑180k's heat matrix); a Cholesky of an SPD matrix needs none (residual 1e-15)
+            self._f.set_iparm(8, 0)
 
     def refactor(self, A: sp.spmatrix) -> Factor:
         """A factorization of A (same size as this one's matrix), reusing what can be reused.
