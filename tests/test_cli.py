@@ -169,9 +169,24 @@ def test_all_pairs_guard(tmp_path, patch_off, capsys, monkeypatch):
     monkeypatch.setattr(memory, "available_bytes", lambda: 10_000)
     src, _ = patch_off
     out = tmp_path / "o.obj"
-    assert main(["unwrap", str(src), "-o", str(out), "--geodesics", "all-pairs", "--quiet", "--fill", "none"]) == 2
+    assert main(["unwrap", str(src), "-o", str(out), "--geodesics", "all-pairs", "--quiet", "--fill", "none",
+                 "--refine", "none"]) == 2
     err = capsys.readouterr().err
     assert "GiB" in err and "landmarks" in err and not out.exists()
+
+
+def test_refinement_memory_guard(tmp_path, patch_off, capsys, monkeypatch):
+    """A mesh whose refinement would not fit is refused up front (exit 2, one line, nothing written)."""
+    from heatparam import memory, refine
+
+    src, sh = patch_off
+    out = tmp_path / "o.obj"
+    need = refine.polish_bytes(len(sh.F))
+    monkeypatch.setattr(memory, "available_bytes", lambda: 0.9 * need / memory.SAFETY_FRACTION)
+    assert main(["unwrap", str(src), "-o", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "refinement" in err and "--refine none" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
 
 
 def test_negative_refine_multilevel_is_refused(tmp_path, patch_off, capsys):

@@ -142,3 +142,19 @@ def test_large_meshes_factorize_with_pardiso_when_installed(disk, monkeypatch):
     assert HeatGeodesics(op, time_step(op), backend="scipy").backend == "scipy"
     D, D0 = big.distances([0, 7]), ref.distances([0, 7])
     assert np.allclose(D, D0, rtol=0, atol=1e-10 * D0.max())
+
+
+def test_threaded_batches_are_bit_identical_to_sequential(disk, monkeypatch):
+    """Batches in threads (heat.THREADS) give exactly the sequential distances; progress counts every column."""
+    from heatparam import heat
+
+    V, F = disk
+    op = build_operators(V, F)
+    s = HeatGeodesics(op, time_step(op))
+    src = np.arange(0, len(V), 7)[:40]  # several batches
+    assert len(src) > 2 * s.block
+    seen: list[int] = []
+    D2 = s.distances(src, progress=seen.append)
+    monkeypatch.setattr(heat, "THREADS", 1)
+    D1 = s.distances(src)
+    assert np.array_equal(D1, D2) and sum(seen) == len(src)

@@ -7,7 +7,9 @@ divergence). No Python loop runs per vertex.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import scipy.sparse as sp
@@ -30,6 +32,10 @@ MAX_BLOCK = 16
 #: source, camelhead↑727k 5.9 vs 18.3 s and 206 vs 136 ms per source; below it CHOLMOD's faster solves win for
 #: many sources (45k: 0.24 vs 0.52 s, 4.9 vs 4.2 ms per source).
 PARDISO_MIN_VERTICES = 100_000
+#: Batches of sources run in this many threads. A factorization is not safe to use from two threads at once, so
+#: the solves take turns (``HeatGeodesics._lock``); what overlaps is one batch's gradient, normalization and
+#: divergence products (numpy/scipy release the GIL) with the other's solves.
+THREADS = 2
 
 
 def time_step(op: Operators, mode: str | float = "default", coef: float = 1.0) -> float:
@@ -74,6 +80,7 @@ class HeatGeodesics:
         # solving the reduced SPD system gives the exact solution up to the constant fixed afterwards.
         self.poisson = Factor(op.L[1:, 1:].tocsc(), self.heat.backend)
         self.backend = self.heat.backend
+        self._lock = threading.Lock()
         self.block = int(max(1, min(MAX_BLOCK, block_bytes // (_BYTES_PER_COLUMN_VERTEX * self.n))))
         self._lumped = np.asarray(op.B.sum(axis=1)).ravel()  # ∫ of each hat function
         self._m = len(op.areas)
@@ -100,7 +107,9 @@ class HeatGeodesics:
         """
         W = self._weights(sources)
         delta = sp.diags(1.0 / self._lumped) @ W
-        return self.heat.solve((self.op.B @ delta).toarray())
+        rhs = (self.op.B @ delta).toarray()
+        with self._lock:
+            return self.heat.solve(rhs)
 
     def _distances_block(self, W: sp.csc_matrix) -> np.ndarray:
         u = self.kernels(W)
@@ -112,7 +121,8 @@ class HeatGeodesics:
         del g
         phi = np.empty((self.n, k))
         phi[0] = 0.0
-        self.poisson.solve(rhs[1:], out=phi[1:])
+        with self._lock:
+            self.poisson.solve(rhs[1:], out=phi[1:])
         del rhs
         cols = np.repeat(np.arange(k), np.diff(W.indptr))
         phi -= np.bincount(cols, weights=W.data * phi[W.indices, cols], minlength=k)  # source at distance 0
@@ -138,10 +148,24 @@ class HeatGeodesics:
         if out is None:
             require(8.0 * self.n * k, f"distance matrix {self.n} x {k}", "use fewer sources (landmarks)")
             out = np.empty((self.n, k))
-        for s in range(0, k, self.block):
+        starts = range(0, k, self.block)
+
+        def block(s: int) -> int:
             out[:, s : s + self.block] = self._distances_block(W[:, s : s + self.block])
-            if progress is not None:
-                progress(min(self.block, k - s))
+            return min(self.block, k - s)
+
+        if len(starts) == 1 or THREADS == 1:
+            done = map(block, starts)
+        else:  # batches in THREADS threads, their solves one at a time (see THREADS)
+            pool = ThreadPoolExecutor(THREADS)
+            done = pool.map(block, starts)
+        try:
+            for c in done:
+                if progress is not None:
+                    progress(c)
+        finally:
+            if len(starts) > 1 and THREADS > 1:
+                pool.shutdown()
         return out
 
 

@@ -167,6 +167,11 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     with prog.stage("validate"):
         info = validate_mesh(V, F)
     warnings += info.warnings
+    if opts.refine != "none":  # refuse at once, not after minutes of geodesics, what the polish could not hold
+        from heatparam.refine import polish_bytes
+
+        require(polish_bytes(len(F)), f"the refinement of {len(F)} triangles",
+                "use --refine none (the raw MDS map) or decimate the mesh")
     # Work on the referenced vertices only (unreferenced ones get the centroid at the end).
     keep = np.flatnonzero(info.referenced)
     remap = np.full(len(V), -1, dtype=np.int64)

@@ -37,6 +37,15 @@ from heatparam.operators import edge_lengths, intrinsic_areas, local_triangles, 
 from heatparam.solvers import Factor, large_system_backend
 
 REFINE_MODES = ("none", "sd")
+#: Peak memory of the refinement per surface face, above the rest of the pipeline: the peak RSS of the default run
+#: minus that of ``--refine none`` measured 2.4 / 1.9 / 2.35 KB per face on camelhead↑45k / 182k / 727k
+#: (BENCHMARKS.md §4: PARDISO's factor of the Hessian, the 6×6 blocks and the pattern's index arrays)
+POLISH_BYTES_PER_FACE = 2600
+
+
+def polish_bytes(faces: int) -> float:
+    """Memory the refinement of a mesh with ``faces`` triangles needs at its peak (estimate), bytes."""
+    return float(POLISH_BYTES_PER_FACE) * faces
 
 
 # ----------------------------------------------------------------------------------------------------------
