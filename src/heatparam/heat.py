@@ -32,10 +32,13 @@ MAX_BLOCK = 16
 #: source, camelhead↑727k 5.9 vs 18.3 s and 206 vs 136 ms per source; below it CHOLMOD's faster solves win for
 #: many sources (45k: 0.24 vs 0.52 s, 4.9 vs 4.2 ms per source).
 PARDISO_MIN_VERTICES = 100_000
-#: Batches of sources run in this many threads. A factorization is not safe to use from two threads at once, so
-#: the solves take turns (``HeatGeodesics._lock``); what overlaps is one batch's gradient, normalization and
-#: divergence products (numpy/scipy release the GIL) with the other's solves.
+#: Batches of sources run in this many threads on meshes of fewer than THREADS_MAX_VERTICES vertices. A
+#: factorization is not safe to use from two threads at once, so the solves take turns (``HeatGeodesics._lock``);
+#: what overlaps is one batch's gradient, normalization and divergence products (numpy/scipy release the GIL) with
+#: the other's solves: 1.55 vs 1.60-1.83 ms per source at 24.6k vertices, 1.07 vs 1.29 ms on beetle (20k). On
+#: large meshes everything is memory-bound: camelhead↑182k geodesics 3.75-4.09 s vs 3.38-3.52 s, peak +130 MB.
 THREADS = 2
+THREADS_MAX_VERTICES = 100_000
 
 
 def time_step(op: Operators, mode: str | float = "default", coef: float = 1.0) -> float:
@@ -149,22 +152,20 @@ class HeatGeodesics:
             require(8.0 * self.n * k, f"distance matrix {self.n} x {k}", "use fewer sources (landmarks)")
             out = np.empty((self.n, k))
         starts = range(0, k, self.block)
+        threads = THREADS if self.n < THREADS_MAX_VERTICES else 1
 
         def block(s: int) -> int:
             out[:, s : s + self.block] = self._distances_block(W[:, s : s + self.block])
             return min(self.block, k - s)
 
-        if len(starts) == 1 or THREADS == 1:
-            done = map(block, starts)
-        else:  # batches in THREADS threads, their solves one at a time (see THREADS)
-            pool = ThreadPoolExecutor(THREADS)
-            done = pool.map(block, starts)
+        # batches in threads, their solves one at a time (see THREADS)
+        pool = ThreadPoolExecutor(threads) if threads > 1 and len(starts) > 1 else None
         try:
-            for c in done:
+            for c in (pool.map if pool else map)(block, starts):
                 if progress is not None:
                     progress(c)
         finally:
-            if len(starts) > 1 and THREADS > 1:
+            if pool:
                 pool.shutdown()
         return out
 
