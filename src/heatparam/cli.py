@@ -38,8 +38,9 @@ def _add_heat_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--t-coef", type=float, default=d.t_coef, metavar="C",
                    help="the c in t = c·h² for --time-step default (default: %(default)s)")
     p.add_argument("--solver", choices=("auto", "cholespy", "scipy", "pardiso"), default=d.solver,
-                   help="sparse Cholesky/LU backend (default: %(default)s = CHOLMOD through cholespy; the "
-                        "refinement uses PARDISO for systems of >= 200k unknowns when installed: heatparam[fast])")
+                   help="sparse Cholesky/LU backend (default: %(default)s = MKL PARDISO, where installed, for the "
+                        "refinement and for the heat method on meshes of >= 100k vertices; CHOLMOD through "
+                        "cholespy otherwise)")
     p.add_argument("--quiet", action="store_true", help="no progress output")
 
 
