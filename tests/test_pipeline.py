@@ -91,3 +91,23 @@ def test_default_pipeline_deterministic():
     b, rb = parameterize(sh.V, sh.F, seed=3)
     assert ra["method"]["fill"]["used"] and ra["method"]["refine"]["method"] == "sd"
     assert np.array_equal(a, b)
+
+
+def test_default_pipeline_reproducible_across_processes():
+    """The same input and seed give a bit-identical map in two fresh processes, with the default backends
+    (camelhead: PARDISO's threaded factorization gave a different map in every run before MKL's conditional
+    numerical reproducibility was switched on; see solvers._prepare_mkl)."""
+    import os
+    import subprocess
+    import sys
+
+    from conftest import shared_mesh
+
+    mesh = shared_mesh("camelhead.off")
+    code = ("import hashlib, sys; from heatparam import io, pipeline; V, F = io.load_mesh(sys.argv[1]); "
+            "uv, rep = pipeline.parameterize(V, F, seed=1); "
+            "print(hashlib.sha1(uv.tobytes()).hexdigest(), rep['method']['refine']['polish']['backend'])")
+    env = {k: v for k, v in os.environ.items() if k != "MKL_CBWR"}  # as a user's shell would be
+    runs = [subprocess.run([sys.executable, "-c", code, str(mesh)], capture_output=True, text=True, env=env,
+                           check=True).stdout.split() for _ in range(2)]
+    assert runs[0] == runs[1], runs
