@@ -164,10 +164,12 @@ def test_output_equal_to_input_refused(tmp_path, patch_off, capsys):
 
 
 def test_all_pairs_guard(tmp_path, patch_off, capsys, monkeypatch):
-    from heatparam import memory
+    from heatparam import heat, memory, pipeline
 
-    monkeypatch.setattr(memory, "available_bytes", lambda: 10_000)
-    src, _ = patch_off
+    src, sh = patch_off
+    raw, full = pipeline.RAW_BYTES_PER_VERTEX * len(sh.V), heat.all_pairs_bytes(len(sh.V))
+    assert raw < full  # room for the landmark path's estimate, not for the n x n matrix
+    monkeypatch.setattr(memory, "available_bytes", lambda: 0.5 * (raw + full) / memory.SAFETY_FRACTION)
     out = tmp_path / "o.obj"
     assert main(["unwrap", str(src), "-o", str(out), "--geodesics", "all-pairs", "--quiet", "--fill", "none",
                  "--refine", "none"]) == 2
@@ -177,16 +179,22 @@ def test_all_pairs_guard(tmp_path, patch_off, capsys, monkeypatch):
 
 def test_refinement_memory_guard(tmp_path, patch_off, capsys, monkeypatch):
     """A mesh whose refinement would not fit is refused up front (exit 2, one line, nothing written)."""
-    from heatparam import memory, refine
+    from heatparam import memory, pipeline, refine
 
     src, sh = patch_off
     out = tmp_path / "o.obj"
-    need = refine.polish_bytes(len(sh.F))
+    raw = pipeline.RAW_BYTES_PER_VERTEX * len(sh.V)
+    need = raw + refine.polish_bytes(len(sh.F))
     monkeypatch.setattr(memory, "available_bytes", lambda: 0.9 * need / memory.SAFETY_FRACTION)
     assert main(["unwrap", str(src), "-o", str(out), "--quiet"]) == 2
     err = capsys.readouterr().err
-    assert "refinement" in err and "--refine none" in err and len(err.strip().splitlines()) == 1
+    assert "refining" in err and "--refine none" in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+    # not even the raw map fits: the advice is to decimate
+    monkeypatch.setattr(memory, "available_bytes", lambda: 0.9 * raw / memory.SAFETY_FRACTION)
+    assert main(["unwrap", str(src), "-o", str(out), "--quiet", "--refine", "none"]) == 2
+    err = capsys.readouterr().err
+    assert "decimate" in err and len(err.strip().splitlines()) == 1 and not out.exists()
 
 
 def test_negative_refine_multilevel_is_refused(tmp_path, patch_off, capsys):

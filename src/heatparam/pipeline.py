@@ -107,6 +107,13 @@ def _choice(name: str, value, allowed) -> None:
         raise HeatparamError(f"{name} must be one of {', '.join(allowed)}; got {value!r}")
 
 
+#: Peak memory of the pipeline without the refinement, per vertex (landmark path): ``--refine none`` peaked at
+#: 3.5-3.9 KB per vertex on camelhead↑727k and 4.4-5.9 KB on camelhead↑182k, interpreter and libraries included
+#: (BENCHMARKS.md §4). With the refinement, ``refine.polish_bytes`` per face comes on top (727k: 6.3 GB measured,
+#: 6.7 GB estimated).
+RAW_BYTES_PER_VERTEX = 4000
+
+
 def default_landmarks(n: int) -> int:
     """Landmark count for the landmark path (see BENCHMARKS.md for the error/time trade-off)."""
     return int(min(n, 100))
@@ -167,10 +174,13 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     with prog.stage("validate"):
         info = validate_mesh(V, F)
     warnings += info.warnings
-    if opts.refine != "none":  # refuse at once, not after minutes of geodesics, what the polish could not hold
+    # refuse at once, not after minutes of work, what memory could not hold
+    raw = RAW_BYTES_PER_VERTEX * len(V)
+    require(raw, f"parameterizing {len(V)} vertices", "decimate the mesh or split it into patches")
+    if opts.refine != "none":
         from heatparam.refine import polish_bytes
 
-        require(polish_bytes(len(F)), f"the refinement of {len(F)} triangles",
+        require(raw + polish_bytes(len(F)), f"parameterizing and refining {len(F)} triangles",
                 "use --refine none (the raw MDS map) or decimate the mesh")
     # Work on the referenced vertices only (unreferenced ones get the centroid at the end).
     keep = np.flatnonzero(info.referenced)
