@@ -21,7 +21,7 @@ from heatparam.memory import peak_rss_bytes, require
 from heatparam.mesh import MeshInfo, validate_mesh
 from heatparam.operators import MASS_KINDS, build_operators
 from heatparam.progress import Progress
-from heatparam.refine import MULTILEVEL_MIN_VERTICES, REFINE_MODES
+from heatparam.refine import MULTILEVEL_MIN_VERTICES, REFINE_MODES, polish_bytes
 from heatparam.solvers import BACKENDS
 
 FILL_MODES = ("auto", "poisson", "biharmonic", "none")
@@ -178,8 +178,6 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     raw = RAW_BYTES_PER_VERTEX * len(V)
     require(raw, f"parameterizing {len(V)} vertices", "decimate the mesh or split it into patches")
     if opts.refine != "none":
-        from heatparam.refine import polish_bytes
-
         require(raw + polish_bytes(len(F)), f"parameterizing and refining {len(F)} triangles",
                 "use --refine none (the raw MDS map) or decimate the mesh")
     # Work on the referenced vertices only (unreferenced ones get the centroid at the end).

@@ -590,8 +590,8 @@ def repair_flips(x: np.ndarray, ref: np.ndarray, F: np.ndarray, g: np.ndarray, l
     of the layout ``ref`` (n,2) (the bijective start: locally an affine image of it is flip-free; weights of the
     3D surface measured worse, camelhead↑45k start energy 1.891 vs 1.877; or ``x`` itself, which those weights
     reproduce wherever its vertex stars are valid: the fallback, start energy 2.88 vs 1.87 at 182k) and the rest
-    of ``x`` (n,2) as
-    boundary values; grow the union around what is still flipped, at most ``REPAIR_ROUNDS`` times.
+    of ``x`` (n,2) as boundary values; grow the union around what is still flipped, at most ``REPAIR_ROUNDS``
+    times.
     ``locked`` (n,) bool: vertices never moved.
     Returns (layout or None when flips remain, faces flipped at first, rounds)."""
     n = len(x)
@@ -688,10 +688,9 @@ def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[n
     (:func:`coarse_to_fine`) when the mesh has >= ``min_vertices`` (> 0) vertices and ``x`` is more than
     ``MULTILEVEL_MIN_EXCESS`` above an isometry. After a converged coarse level the polish stops at
     ``MULTILEVEL_FINE_TOL_FACTOR`` × ``tol``. Returns (layout (n,2), polish report, coarse-to-fine report)."""
-    e = symmetric_dirichlet(jacobians(x, F, g), area / area.sum())[0] / 4
     if not 0 < min_vertices <= len(V):
         ml: dict = {"used": False, "reason": "small mesh"}
-    elif not e > 1.0 + MULTILEVEL_MIN_EXCESS:
+    elif not symmetric_dirichlet(jacobians(x, F, g), area / area.sum())[0] / 4 > 1.0 + MULTILEVEL_MIN_EXCESS:
         ml = {"used": False, "reason": "the start is already within 1% of an isometry"}
     else:
         try:

@@ -119,7 +119,6 @@ class Factor:
             out[...] = x
         return out
 
-
     def __del__(self) -> None:
         # pypardiso keeps MKL's factor until told otherwise: without this every dropped Factor leaks it
         # (camelhead↑180k polish: 6.6 GB peak instead of 1.6 GB)
