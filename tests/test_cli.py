@@ -262,3 +262,19 @@ def test_geodesics_still_refuses_what_operators_cannot_handle(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "connected components" in err and err.count("\n") == 1
     assert not (tmp_path / "d.npy").exists()
+
+
+def test_mds_start_option_reaches_the_report(tmp_path, patch_off):
+    """Default on a developable patch: heat stage skipped, stress null in the JSON; --mds-start always runs it."""
+    src, _ = patch_off
+    runs = {}
+    for mode in ("auto", "always"):
+        rep = tmp_path / f"{mode}.json"
+        assert main(["unwrap", str(src), "-o", str(tmp_path / f"{mode}.obj"), "--mds-start", mode,
+                     "--report", str(rep), "--quiet"]) == 0
+        runs[mode] = json.loads(rep.read_text())
+    auto, always = runs["auto"], runs["always"]
+    assert auto["parameters"]["mds_start"] == "auto" and always["parameters"]["mds_start"] == "always"
+    assert auto["method"]["geodesics"].startswith("skipped") and auto["metrics"]["stress_rel_rms"] is None
+    assert always["method"]["geodesics"] in ("all-pairs", "landmarks") and always["metrics"]["stress_rel_rms"] > 0
+    assert auto["metrics"]["iso_mean"] == always["metrics"]["iso_mean"]

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from heatparam import shapes
+from heatparam import refine, shapes
 from heatparam.errors import HeatparamError
 from heatparam.pipeline import Options, parameterize
 
@@ -87,8 +87,8 @@ def test_bad_options_rejected(cylinder):
 def test_default_pipeline_deterministic():
     """Fill, landmarks and refinement with the same seed: bit-identical output."""
     sh = shapes.cylinder_with_holes(h=0.09)
-    a, ra = parameterize(sh.V, sh.F, seed=3)
-    b, rb = parameterize(sh.V, sh.F, seed=3)
+    a, ra = parameterize(sh.V, sh.F, seed=3, mds_start="always")
+    b, rb = parameterize(sh.V, sh.F, seed=3, mds_start="always")
     assert ra["method"]["fill"]["used"] and ra["method"]["refine"]["method"] == "sd"
     assert np.array_equal(a, b)
 
@@ -111,3 +111,34 @@ def test_default_pipeline_reproducible_across_processes():
     runs = [subprocess.run([sys.executable, "-c", code, str(mesh)], capture_output=True, text=True, env=env,
                            check=True).stdout.split() for _ in range(2)]
     assert runs[0] == runs[1], runs
+
+
+def test_near_isometric_lscm_skips_the_heat_stage_same_map():
+    """Developable with holes: LSCM is bijective and isometric to round-off, so the default skips fill, geodesics
+    and MDS, and the map is bit-identical to the one computed with them (``mds_start="always"``)."""
+    sh = shapes.cylinder_with_holes(h=0.09)
+    fast, rf = parameterize(sh.V, sh.F)
+    full, ra = parameterize(sh.V, sh.F, mds_start="always")
+    assert np.array_equal(fast, full)
+    assert ra["method"]["refine"]["start"]["layout"] == "lscm" and ra["method"]["fill"]["used"]
+    assert rf["method"]["geodesics"].startswith("skipped") and "skipped" in rf["method"]["fill"]
+    assert not rf["method"]["fill"]["used"] and "geodesics" not in rf["timings_s"]
+    assert rf["metrics"]["stress_rel_rms"] is None and ra["metrics"]["stress_rel_rms"] > 0
+    assert rf["method"]["refine"]["start"]["energy"]["lscm"] - 1 < refine.ISOMETRIC_START_EXCESS
+
+
+def test_curved_surface_keeps_the_heat_stage():
+    """A spherical cap (LSCM 1% above an isometry): the MDS layout is computed and competes as a start."""
+    d = shapes.flat_disk(h=0.08)
+    V = shapes.lift_sphere(d.V[:, :2], 1.2)
+    _, rep = parameterize(V, d.F)
+    start = rep["method"]["refine"]["start"]
+    assert start["energy"]["lscm"] - 1 > refine.ISOMETRIC_START_EXCESS and "mds" in start["energy"]
+    assert "geodesics" in rep["timings_s"] and rep["metrics"]["stress_rel_rms"] > 0
+
+
+def test_explicit_heat_options_are_never_skipped():
+    sh = shapes.cylinder_with_holes(h=0.09)
+    for kw in ({"fill": "biharmonic"}, {"geodesics": "landmarks"}, {"landmarks": 20}, {"stress": "smacof"}):
+        _, rep = parameterize(sh.V, sh.F, **kw)
+        assert "geodesics" in rep["timings_s"], kw

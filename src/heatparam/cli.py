@@ -13,7 +13,7 @@ from pathlib import Path
 
 from heatparam import __version__
 from heatparam.errors import HeatparamError
-from heatparam.pipeline import FILL_MODES, GEODESIC_MODES, REFINE_MODES, STRESS_MODES, Options
+from heatparam.pipeline import FILL_MODES, GEODESIC_MODES, MDS_START_MODES, REFINE_MODES, STRESS_MODES, Options
 
 EXIT_BAD_INPUT = 2
 
@@ -72,6 +72,11 @@ def build_parser() -> argparse.ArgumentParser:
     u.add_argument("--refine", choices=REFINE_MODES, default=d.refine,
                    help="sd = flip-free symmetric Dirichlet polish at true scale with overlap checks; none = the "
                         "paper's raw MDS map (default: %(default)s)")
+    u.add_argument("--mds-start", choices=MDS_START_MODES, default=d.mds_start,
+                   help="auto = with --refine sd, skip the fill, geodesics and MDS when the LSCM layout is already "
+                        "bijective and within 0.1%% of an isometry (developable parts: the same map, faster; "
+                        "stress_rel_rms is then null); always = compute them as a start candidate anyway "
+                        "(default: %(default)s)")
     u.add_argument("--refine-multilevel", type=int, default=d.refine_multilevel, metavar="N",
                    help="meshes of at least N vertices are polished coarse-to-fine (a ~1/8-size coarse mesh "
                         "first; docs/refine.md); 0 = never (default: %(default)s)")
@@ -127,8 +132,8 @@ def cmd_unwrap(args: argparse.Namespace) -> int:
     V, F = io.load_mesh(args.input)
     opts = Options(fill=args.fill, geodesics=args.geodesics, landmarks=args.landmarks, time_step=args.time_step,
                    t_coef=args.t_coef, solver=args.solver, seed=args.seed, refine=args.refine,
-                   refine_multilevel=args.refine_multilevel, stress=args.stress, fill_depth=args.fill_depth,
-                   progress=not args.quiet)
+                   refine_multilevel=args.refine_multilevel, mds_start=args.mds_start, stress=args.stress,
+                   fill_depth=args.fill_depth, progress=not args.quiet)
     result = parameterize(V, F, opts)
     uv, report = result
     report["input"] = str(args.input)

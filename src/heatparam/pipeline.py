@@ -27,6 +27,7 @@ from heatparam.solvers import BACKENDS
 FILL_MODES = ("auto", "poisson", "biharmonic", "none")
 GEODESIC_MODES = ("auto", "all-pairs", "landmarks")
 STRESS_MODES = ("none", "smacof")
+MDS_START_MODES = ("auto", "always")
 
 
 @dataclass
@@ -55,6 +56,11 @@ class Options:
         before refinement, with the distances MDS used (all-pairs: every pair; landmarks: the n×k point-landmark
         pairs; fill: the points and M*'s vertices against the landmarks on M*); ``none`` (default, from the
         measurement in BENCHMARKS.md §7).
+    mds_start : with ``refine``, ``auto`` skips the fill, heat geodesics and MDS when the LSCM layout is already
+        bijective and within ``refine.ISOMETRIC_START_EXCESS`` (0.1%) of an isometry in energy — the MDS layout
+        is then only a start candidate that cannot be better by more than that (the map is the same, faster; the
+        report's ``stress_rel_rms`` is then null); ``always`` computes them anyway. Nothing is skipped with
+        ``refine none`` or when ``fill``, ``geodesics``, ``landmarks`` or ``stress`` is set explicitly.
     refine_multilevel : meshes with at least this many vertices are polished coarse-to-fine (a coarse mesh of
         about 1/8 of the vertices is polished first and prolongated; ``refine.coarse_to_fine``); 0 = never.
     refine_iters : iteration cap of the symmetric Dirichlet polish.
@@ -74,6 +80,7 @@ class Options:
     stress_sources: int = 32
     fill_depth: int = 0
     refine: str = "sd"
+    mds_start: str = "auto"
     stress: str = "none"
     refine_multilevel: int = MULTILEVEL_MIN_VERTICES
     refine_iters: int = 200
@@ -94,6 +101,7 @@ class Options:
             raise HeatparamError(f"landmarks must be 0 (automatic) or at least 3, got {self.landmarks}")
         _choice("refine", self.refine, REFINE_MODES)
         _choice("stress", self.stress, STRESS_MODES)
+        _choice("mds_start", self.mds_start, MDS_START_MODES)
         if self.refine_multilevel < 0:
             raise HeatparamError(f"refine_multilevel must be 0 (never) or a vertex count, got {self.refine_multilevel}")
         if self.fill_depth < 0:
@@ -197,6 +205,24 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     with prog.stage("fill decision"):
         fill_used, fill_reason = _decide_fill(opts, Vc, Fc, info, conformal)
     fill_report: dict = {"used": fill_used, "reason": fill_reason}
+    lscm = None
+    if opts.refine != "none" and opts.mds_start == "auto" and _heat_stage_optional(opts):
+        from heatparam import refine
+
+        with prog.stage("start check"):
+            lscm = refine.lscm_start(Vc, Fc, conformal)
+    if lscm is not None and lscm.near_isometric:
+        skipped = (f"skipped: the LSCM layout is bijective and within {refine.ISOMETRIC_START_EXCESS:g} of an "
+                   f"isometry (energy {lscm.energy:.7f}), so it starts the refinement (--mds-start always "
+                   "computes them)")
+        if fill_used:
+            fill_report.update(used=False, skipped=skipped)
+        uvc, refine_report = _refined(Vc, Fc, None, opts, prog, conformal, lscm)
+        summary = _metrics(Vc, Fc, uvc, prog, None)
+        method = {"geodesics": skipped, "solver_backend": None, "fill": fill_report,
+                  "stress": {"method": "none"}, "refine": refine_report, "mass_matrix": opts.mass,
+                  "mollified_edge_length": None}
+        return _result(V, F, keep, uvc, summary, opts, method, None, info, prog, warnings, None)
     M = None
     if fill_used:
         from heatparam import fill
@@ -225,18 +251,44 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
         surface = FillSurface(M.V, M.F, layout.uv_surface * flip, uvc.copy(), fill_report.get("method", ""))
     refine_report: dict = {"method": opts.refine}
     if opts.refine != "none":
-        from heatparam import refine
+        uvc, refine_report = _refined(Vc, Fc, uvc, opts, prog, conformal, lscm)
+    summary = _metrics(Vc, Fc, uvc, prog, layout)
+    method = {"geodesics": layout.mode, "solver_backend": layout.backend, "fill": fill_report,
+              "stress": layout.stress or {"method": "none"}, "refine": refine_report, "mass_matrix": opts.mass,
+              "mollified_edge_length": layout.mollify_eps}
+    return _result(V, F, keep, uvc, summary, opts, method, layout, info, prog, warnings, surface)
 
-        with prog.stage("refine"):
-            uvc, refine_report = refine.refine(Vc, Fc, uvc, opts, progress=prog, conformal=conformal)
 
+def _heat_stage_optional(opts: Options) -> bool:
+    """Whether ``mds_start auto`` may skip the fill, geodesics and MDS: not when any of them was asked for."""
+    return opts.fill == "auto" and opts.geodesics == "auto" and opts.stress == "none" and opts.landmarks == 0
+
+
+def _refined(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, opts: Options, prog: Progress,
+             conformal: Callable[[], np.ndarray], lscm) -> tuple[np.ndarray, dict]:
+    """``refine.refine`` of the layout ``uv`` (None: LSCM starts) as the "refine" stage."""
+    from heatparam import refine
+
+    with prog.stage("refine"):
+        return refine.refine(V, F, uv, opts, progress=prog, conformal=conformal, lscm=lscm)
+
+
+def _metrics(V: np.ndarray, F: np.ndarray, uv: np.ndarray, prog: Progress, layout: Layout | None) -> dict:
+    """The map's metrics; the sampled Eq. 1 stress against the geodesics when they were computed (else None)."""
+    with prog.stage("metrics"):
+        summary = metrics.summary(V, F, uv)
+        summary["stress_rel_rms"] = (metrics.stress(uv, layout.D_points, layout.stress_columns)
+                                     if layout is not None else None)
+    return summary
+
+
+def _result(V: np.ndarray, F: np.ndarray, keep: np.ndarray, uvc: np.ndarray, summary: dict, opts: Options,
+            method: dict, layout: Layout | None, info: MeshInfo, prog: Progress, warnings: list[str],
+            surface: FillSurface | None) -> Result:
+    """The map of every input vertex (unreferenced ones at the centroid) and the report."""
     uv = np.zeros((len(V), 2))
     uv[keep] = uvc
     uv[~info.referenced] = uvc.mean(axis=0)
-
-    with prog.stage("metrics"):
-        summary = metrics.summary(Vc, Fc, uvc)
-        summary["stress_rel_rms"] = metrics.stress(uvc, layout.D_points, layout.stress_columns)
     if summary["flips"] or summary["boundary_crossings"]:
         warnings.append(
             f"the map is not bijective: {summary['flips']} flipped triangles, "
@@ -244,14 +296,12 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
         )
     for w in warnings:
         prog.warn(w)
-
     report = {
         "heatparam_version": __version__,
         "parameters": {**{f.name: getattr(opts, f.name) for f in fields(opts)},
-                       "time_step_value": layout.t, "landmarks_used": layout.k},
-        "method": {"geodesics": layout.mode, "solver_backend": layout.backend,
-                   "fill": fill_report, "stress": layout.stress or {"method": "none"}, "refine": refine_report,
-                   "mass_matrix": opts.mass, "mollified_edge_length": layout.mollify_eps},
+                       "time_step_value": layout.t if layout else None,
+                       "landmarks_used": layout.k if layout else None},
+        "method": method,
         "mesh": info.as_dict(),
         "metrics": summary,
         "timings_s": prog.timings,
