@@ -183,7 +183,11 @@ def cmd_geodesics(args: argparse.Namespace) -> int:
     remap = np.full(len(V), -1, dtype=np.int64)
     remap[keep] = np.arange(len(keep))
     op = build_operators(V[keep], remap[F])
-    solver = heat.HeatGeodesics(op, heat.time_step(op, args.time_step, args.t_coef), backend=args.solver)
+    t = heat.time_step(op, args.time_step, args.t_coef)
+    warning = heat.underflow_warning(op, t) if args.time_step != "default" else None
+    if warning:
+        print(f"heatparam: warning: {warning}", file=sys.stderr)
+    solver = heat.HeatGeodesics(op, t, backend=args.solver)
     D = np.full((len(V), len(src)), np.inf)
     D[keep] = solver.distances(remap[src])
     io.save_npy(out, D)

@@ -243,6 +243,8 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
         layout = _geodesic_layout(M.V, M.F, opts, prog, points=(M.face, M.bary))
     else:
         layout = _geodesic_layout(Vc, Fc, opts, prog)
+    if layout.warning:
+        warnings.append(layout.warning)
     mirror = mds.needs_mirror(layout.uv, Fc)
     uvc = mds.orient_layout(layout.uv, Fc)
     surface = None
@@ -335,6 +337,7 @@ class Layout(NamedTuple):
     backend: str
     mollify_eps: float
     stress: dict | None = None  # SMACOF info (``mds.smacof``, without its history) when opts.stress == "smacof"
+    warning: str | None = None  # an explicit time step too small for the surface (``heat.underflow_warning``)
 
 
 def _geodesic_layout(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress,
@@ -357,6 +360,7 @@ def _geodesic_layout(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress
     with prog.stage("operators"):
         op = build_operators(V, F, mass=opts.mass)
     t = heat.time_step(op, opts.time_step, opts.t_coef)
+    warning = heat.underflow_warning(op, t) if opts.time_step != "default" else None
     with prog.stage("factorize"):
         solver = heat.HeatGeodesics(op, t, backend=opts.solver)
     rng = np.random.default_rng(opts.seed)
@@ -373,7 +377,7 @@ def _geodesic_layout(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress
                 np.sqrt(D, out=D)  # MDS squared D in place; sqrt(fl(x²)) = x restores it exactly
                 uv, sinfo = _smacof(uv, D)
         del D
-        return Layout(uv, None, D_stress, cols, mode, n, t, solver.backend, op.mollify_eps, sinfo)
+        return Layout(uv, None, D_stress, cols, mode, n, t, solver.backend, op.mollify_eps, sinfo, warning)
     k = n if mode == "all-pairs" else (opts.landmarks or default_landmarks(n))
     with prog.stage("geodesics"), prog.bar(k + 1, "landmark geodesics", "src") as bar:
         if k >= n:
@@ -389,7 +393,8 @@ def _geodesic_layout(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress
             with prog.stage("stress"):
                 uv, sinfo = _smacof(uv, DL, lm)
         cols = np.arange(min(k, opts.stress_sources))
-        return Layout(uv, None, DL[:, cols], lm[cols], mode, k, t, solver.backend, op.mollify_eps, sinfo)
+        return Layout(uv, None, DL[:, cols], lm[cols], mode, k, t, solver.backend, op.mollify_eps, sinfo,
+                      warning)
     face, bary = points
     with prog.stage("mds"):
         DP = np.einsum("pc,pck->pk", bary, DL[F[face]])  # landmark distances interpolated at the points
@@ -407,7 +412,7 @@ def _geodesic_layout(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress
         cols = np.sort(rng.choice(len(face), size=min(len(face), opts.stress_sources), replace=False))
         Ds = solver.distances(heat.point_sources(F, face[cols], bary[cols], n))
         D_stress = np.einsum("pc,pck->pk", bary, Ds[F[face]])
-    return Layout(uv, uv_surface, D_stress, cols, mode, k, t, solver.backend, op.mollify_eps, sinfo)
+    return Layout(uv, uv_surface, D_stress, cols, mode, k, t, solver.backend, op.mollify_eps, sinfo, warning)
 
 
 def _smacof(X0: np.ndarray, D: np.ndarray, landmarks: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
