@@ -142,3 +142,38 @@ def test_explicit_heat_options_are_never_skipped():
     for kw in ({"fill": "biharmonic"}, {"geodesics": "landmarks"}, {"landmarks": 20}, {"stress": "smacof"}):
         _, rep = parameterize(sh.V, sh.F, **kw)
         assert "geodesics" in rep["timings_s"], kw
+
+
+def test_folded_coarse_mds_skips_the_heat_stage_same_map(monkeypatch):
+    """camelhead (MDS folds): with the fold check on at its size, the MDS of a coarse mesh folds too, so the full
+    heat stage is skipped and the map is bit-identical to the one computed with it (the start is LSCM either way)."""
+    from heatparam import io, pipeline
+
+    from conftest import shared_mesh
+
+    V, F = io.load_mesh(shared_mesh("camelhead.off"))
+    monkeypatch.setattr(pipeline, "FOLD_CHECK_MIN_VERTICES", 5000)
+    fast, rf = parameterize(V, F)
+    full, ra = parameterize(V, F, mds_start="always")
+    assert np.array_equal(fast, full)
+    fc = rf["method"]["fold_check"]
+    assert fc["flips"] > 0.3 * fc["faces"] and fc["vertices"] < len(V)  # (at least COARSE_MIN: 8k targeted)
+    assert rf["method"]["geodesics"].startswith("skipped") and "geodesics" not in rf["timings_s"]
+    assert ra["method"]["refine"]["start"]["flips"] > 0 and ra["method"]["refine"]["start"]["layout"] == "lscm"
+
+
+def test_fold_check_that_finds_no_fold_or_fails_keeps_the_heat_stage(monkeypatch):
+    from heatparam import pipeline
+
+    d = shapes.flat_disk(h=0.05)
+    V = shapes.lift_sphere(d.V[:, :2], 1.2)  # a cap: LSCM 1% above an isometry, MDS does not fold
+    monkeypatch.setattr(pipeline, "FOLD_CHECK_MIN_VERTICES", 1000)
+    _, rep = parameterize(V, d.F)
+    assert rep["method"]["fold_check"]["flips"] == 0 and "geodesics" in rep["timings_s"]
+
+    def broken(*a, **k):
+        raise ValueError("coarse triangulation failed: test")
+
+    monkeypatch.setattr(refine, "coarse_mesh", broken)
+    _, rep = parameterize(V, d.F)
+    assert "test" in rep["method"]["fold_check"]["failed"] and "geodesics" in rep["timings_s"]

@@ -74,8 +74,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "paper's raw MDS map (default: %(default)s)")
     u.add_argument("--mds-start", choices=MDS_START_MODES, default=d.mds_start,
                    help="auto = with --refine sd, skip the fill, geodesics and MDS when the LSCM layout is already "
-                        "bijective and within 0.1%% of an isometry (developable parts: the same map, faster; "
-                        "stress_rel_rms is then null); always = compute them as a start candidate anyway "
+                        "bijective and within 0.1%% of an isometry (developable parts), or, from 30k vertices, when "
+                        "the MDS layout of a 1/8 coarse mesh folds (curved scans): the same map, faster; "
+                        "stress_rel_rms is then null; always = compute them as a start candidate anyway "
                         "(default: %(default)s)")
     u.add_argument("--refine-multilevel", type=int, default=d.refine_multilevel, metavar="N",
                    help="meshes of at least N vertices are polished coarse-to-fine (a ~1/8-size coarse mesh "

@@ -58,8 +58,10 @@ class Options:
         measurement in BENCHMARKS.md §7).
     mds_start : with ``refine``, ``auto`` skips the fill, heat geodesics and MDS when the LSCM layout is already
         bijective and within ``refine.ISOMETRIC_START_EXCESS`` (0.1%) of an isometry in energy — the MDS layout
-        is then only a start candidate that cannot be better by more than that (the map is the same, faster; the
-        report's ``stress_rel_rms`` is then null); ``always`` computes them anyway. Nothing is skipped with
+        is then only a start candidate that cannot be better by more than that — and, on meshes of at least
+        ``FOLD_CHECK_MIN_VERTICES``, when the MDS layout of a coarse mesh is not bijective (the full one would not
+        be a start either). The map is the same, faster; the report's ``stress_rel_rms`` is then null.
+        ``always`` computes them anyway. Nothing is skipped with
         ``refine none`` or when ``fill``, ``geodesics``, ``landmarks`` or ``stress`` is set explicitly.
     refine_multilevel : meshes with at least this many vertices are polished coarse-to-fine (a coarse mesh of
         about 1/8 of the vertices is polished first and prolongated; ``refine.coarse_to_fine``); 0 = never.
@@ -205,23 +207,32 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     with prog.stage("fill decision"):
         fill_used, fill_reason = _decide_fill(opts, Vc, Fc, info, conformal)
     fill_report: dict = {"used": fill_used, "reason": fill_reason}
-    lscm = None
+    lscm, skipped, fold_check = None, None, None
     if opts.refine != "none" and opts.mds_start == "auto" and _heat_stage_optional(opts):
         from heatparam import refine
 
         with prog.stage("start check"):
             lscm = refine.lscm_start(Vc, Fc, conformal)
-    if lscm is not None and lscm.near_isometric:
-        skipped = (f"skipped: the LSCM layout is bijective and within {refine.ISOMETRIC_START_EXCESS:g} of an "
-                   f"isometry (energy {lscm.energy:.7f}), so it starts the refinement (--mds-start always "
-                   "computes them)")
+        if lscm.near_isometric:
+            skipped = (f"skipped: the LSCM layout is bijective and within {refine.ISOMETRIC_START_EXCESS:g} of an "
+                       f"isometry (energy {lscm.energy:.7f}), so it starts the refinement (--mds-start always "
+                       "computes them)")
+        elif lscm.energy is not None and len(Vc) >= FOLD_CHECK_MIN_VERTICES:
+            with prog.stage("fold check"):
+                fold_check = _coarse_fold_check(Vc, Fc, lscm.uv, opts)
+            if fold_check.get("flips") or fold_check.get("crossings"):
+                skipped = (f"skipped: the MDS layout of a {fold_check['vertices']}-vertex coarse mesh is not "
+                           f"bijective ({fold_check['flips']} of {fold_check['faces']} triangles flipped, "
+                           f"{fold_check['crossings']} boundary crossings), so the full one would not be a start "
+                           "for the refinement either; it starts from LSCM (--mds-start always computes them)")
+    if skipped is not None:
         if fill_used:
             fill_report.update(used=False, skipped=skipped)
         uvc, refine_report = _refined(Vc, Fc, None, opts, prog, conformal, lscm)
         summary = _metrics(Vc, Fc, uvc, prog, None)
         method = {"geodesics": skipped, "solver_backend": None, "fill": fill_report,
                   "stress": {"method": "none"}, "refine": refine_report, "mass_matrix": opts.mass,
-                  "mollified_edge_length": None}
+                  "mollified_edge_length": None, "fold_check": fold_check}
         return _result(V, F, keep, uvc, summary, opts, method, None, info, prog, warnings, None)
     M = None
     if fill_used:
@@ -257,8 +268,36 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     summary = _metrics(Vc, Fc, uvc, prog, layout)
     method = {"geodesics": layout.mode, "solver_backend": layout.backend, "fill": fill_report,
               "stress": layout.stress or {"method": "none"}, "refine": refine_report, "mass_matrix": opts.mass,
-              "mollified_edge_length": layout.mollify_eps}
+              "mollified_edge_length": layout.mollify_eps, "fold_check": fold_check}
     return _result(V, F, keep, uvc, summary, opts, method, layout, info, prog, warnings, surface)
+
+
+#: Meshes of at least this many vertices whose LSCM start is bijective but not isometric get a fold check: the
+#: fill, geodesics and MDS run first on a coarse mesh (1/8 of the vertices, ``refine.coarse_vertices`` triangulated
+#: in the LSCM layout); if that MDS layout is not bijective the full one is not computed. Folding is a property of
+#: the shape (camelhead: 53% of the coarse triangles flipped at 11k and 51% at 45k, 59% and 58% of the full ones);
+#: a coarse layout that does not fold proves nothing, and the full heat stage runs (beetle: 0 flips coarse, 1 full).
+FOLD_CHECK_MIN_VERTICES = 30_000
+
+
+def _coarse_fold_check(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts: Options) -> dict:
+    """The pipeline without refinement on a coarse mesh of (V, F) triangulated in the bijective layout ``uv``:
+    flips and boundary crossings of its MDS layout (the same options otherwise), or why it could not be done."""
+    from dataclasses import replace
+
+    from heatparam import refine
+
+    try:
+        disk = refine.build_disk(V, F)
+        loops = [disk.outer, *disk.holes]
+        ids = refine.coarse_vertices(V, F, loops, max(int(len(V) * refine.COARSE_FRACTION), refine.COARSE_MIN))
+        T = refine.coarse_mesh(uv, loops, ids)
+        _, rep = parameterize(V[ids], T, replace(opts, refine="none", progress=False))
+    except (HeatparamError, ValueError, RuntimeError, np.linalg.LinAlgError) as exc:  # only a shortcut
+        return {"failed": str(exc)}
+    m = rep["metrics"]
+    return {"vertices": len(ids), "faces": len(T), "flips": m["flips"], "crossings": m["boundary_crossings"],
+            "fill": rep["method"]["fill"]["used"], "seconds": round(sum(rep["timings_s"].values()), 3)}
 
 
 def _heat_stage_optional(opts: Options) -> bool:
