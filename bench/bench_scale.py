@@ -262,7 +262,8 @@ def scale_table(args, save_uv_obj) -> None:
                 sec = float(np.median(r["times"]["end_to_end"])) if "times" in r else r["seconds"]
                 ratio = sec / lscm["seconds"] if "seconds" in lscm else float("nan")
                 if "stages" in r:
-                    heat_note = ("heat stage skipped (LSCM start near-isometric)" if r["k"] is None
+                    why = "coarse MDS folds" if "coarse mesh" in str(r["mode"]) else "LSCM start near-isometric"
+                    heat_note = (f"heat stage skipped ({why})" if r["k"] is None
                                  else f"{r['mode']} k={r['k']}, {r['backend']}")
                     note = (f"{heat_note}; load {r['load']:.2f} s, save {r['save']:.2f} s; "
                             + ", ".join(f"{k} {v:.2f}" for k, v in r["stages"].items()))
