@@ -21,7 +21,7 @@ from heatparam.memory import peak_rss_bytes, require
 from heatparam.mesh import MeshInfo, validate_mesh
 from heatparam.operators import MASS_KINDS, build_operators
 from heatparam.progress import Progress
-from heatparam.refine import MULTILEVEL_MIN_VERTICES, REFINE_MODES, polish_bytes
+from heatparam.refine import MULTILEVEL_MIN_VERTICES, REFINE_MODES, LscmStart, polish_bytes
 from heatparam.solvers import BACKENDS
 
 FILL_MODES = ("auto", "poisson", "biharmonic", "none")
@@ -207,24 +207,7 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     with prog.stage("fill decision"):
         fill_used, fill_reason = _decide_fill(opts, Vc, Fc, info, conformal)
     fill_report: dict = {"used": fill_used, "reason": fill_reason}
-    lscm, skipped, fold_check = None, None, None
-    if opts.refine != "none" and opts.mds_start == "auto" and _heat_stage_optional(opts):
-        from heatparam import refine
-
-        with prog.stage("start check"):
-            lscm = refine.lscm_start(Vc, Fc, conformal)
-        if lscm.near_isometric:
-            skipped = (f"skipped: the LSCM layout is bijective and within {refine.ISOMETRIC_START_EXCESS:g} of an "
-                       f"isometry (energy {lscm.energy:.7f}), so it starts the refinement (--mds-start always "
-                       "computes them)")
-        elif lscm.energy is not None and len(Vc) >= FOLD_CHECK_MIN_VERTICES:
-            with prog.stage("fold check"):
-                fold_check = _coarse_fold_check(Vc, Fc, lscm.uv, opts)
-            if fold_check.get("flips") or fold_check.get("crossings"):
-                skipped = (f"skipped: the MDS layout of a {fold_check['vertices']}-vertex coarse mesh is not "
-                           f"bijective ({fold_check['flips']} of {fold_check['faces']} triangles flipped, "
-                           f"{fold_check['crossings']} boundary crossings), so the full one would not be a start "
-                           "for the refinement either; it starts from LSCM (--mds-start always computes them)")
+    lscm, skipped, fold_check = _start_checks(Vc, Fc, opts, prog, conformal)
     if skipped is not None:
         if fill_used:
             fill_report.update(used=False, skipped=skipped)
@@ -272,6 +255,32 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     return _result(V, F, keep, uvc, summary, opts, method, layout, info, prog, warnings, surface)
 
 
+def _start_checks(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress, conformal: Callable[[], np.ndarray]
+                  ) -> tuple[LscmStart | None, str | None, dict | None]:
+    """Whether the fill, geodesics and MDS can be skipped (``mds_start auto``): (the LSCM start judged by
+    ``refine.lscm_start`` or None, why the heat stage is skipped or None, the fold check's report or None)."""
+    if opts.refine == "none" or opts.mds_start != "auto" or not _heat_stage_optional(opts):
+        return None, None, None
+    from heatparam import refine
+
+    with prog.stage("start check"):
+        lscm = refine.lscm_start(V, F, conformal)
+    if lscm.near_isometric:
+        return lscm, (f"skipped: the LSCM layout is bijective and within {refine.ISOMETRIC_START_EXCESS:g} of an "
+                      f"isometry (energy {lscm.energy:.7f}), so it starts the refinement (--mds-start always "
+                      "computes them)"), None
+    if lscm.energy is None or len(V) < FOLD_CHECK_MIN_VERTICES:
+        return lscm, None, None
+    with prog.stage("fold check"):
+        fc = _coarse_fold_check(V, F, lscm.uv, opts)
+    if not (fc.get("flips") or fc.get("crossings")):
+        return lscm, None, fc
+    return lscm, (f"skipped: the MDS layout of a {fc['vertices']}-vertex coarse mesh is not bijective "
+                  f"({fc['flips']} of {fc['faces']} triangles flipped, {fc['crossings']} boundary crossings), so "
+                  "the full one would not be a start for the refinement either; it starts from LSCM "
+                  "(--mds-start always computes them)"), fc
+
+
 #: Meshes of at least this many vertices whose LSCM start is bijective but not isometric get a fold check: the
 #: fill, geodesics and MDS run first on a coarse mesh (1/8 of the vertices, ``refine.coarse_vertices`` triangulated
 #: in the LSCM layout); if that MDS layout is not bijective the full one is not computed. Folding is a property of
@@ -306,7 +315,7 @@ def _heat_stage_optional(opts: Options) -> bool:
 
 
 def _refined(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, opts: Options, prog: Progress,
-             conformal: Callable[[], np.ndarray], lscm) -> tuple[np.ndarray, dict]:
+             conformal: Callable[[], np.ndarray], lscm: LscmStart | None) -> tuple[np.ndarray, dict]:
     """``refine.refine`` of the layout ``uv`` (None: LSCM starts) as the "refine" stage."""
     from heatparam import refine
 
