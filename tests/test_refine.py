@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from heatparam import pipeline, refine, shapes
+from heatparam import metrics, pipeline, refine, shapes
 
 from conftest import shared_mesh
 
@@ -469,3 +469,56 @@ def test_multilevel_polish_recurses_and_matches_single_level(monkeypatch):
     assert len(V) > ml3["coarse_vertices"] > ml3["coarse_multilevel"]["coarse_vertices"]
     assert refine._is_bijective(x3, F, g) == (0, 0) and p3["converged"]
     assert p3["energy_end"] == pytest.approx(p1["energy_end"], rel=1e-4)
+
+
+def _with_a_fold(uv: np.ndarray, F: np.ndarray, boundary: np.ndarray) -> np.ndarray:
+    """``uv`` with one interior vertex pushed across the far side of its star (a few faces flip)."""
+    n = len(uv)
+    inner = np.setdiff1d(np.arange(n), boundary)
+    v = int(inner[np.argmin(np.linalg.norm(uv[inner] - uv.mean(axis=0), axis=1))])  # the most central one
+    nb = np.unique(F[(F == v).any(axis=1)])
+    far = nb[np.argmax(np.linalg.norm(uv[nb] - uv[v], axis=1))]
+    out = uv.copy()
+    out[v] = uv[v] + 1.5 * (uv[far] - uv[v])
+    return out
+
+
+def test_repaired_layout_unfolds_a_few_flips_and_keeps_the_boundary():
+    s = shapes.cylinder_patch()
+    disk = refine.build_disk(s.V, s.F)
+    loops = [disk.outer, *disk.holes]
+    g, _ = refine.surface_gradients(s.V, s.F)
+    bad = _with_a_fold(s.uv_true, s.F, np.concatenate(loops))
+    flips = int((np.linalg.det(refine.jacobians(bad, s.F, g)) <= 0).sum())
+    assert 0 < flips <= refine.MDS_REPAIR_MAX_FRACTION * len(s.F) + 1
+    z, info = refine.repaired_layout(bad, s.F, g, loops)
+    assert info["repaired"] and info["flips"] == flips
+    assert (np.linalg.det(refine.jacobians(z, s.F, g)) > 0).all() and metrics.boundary_crossings(z, s.F) == 0
+    bnd = np.concatenate(loops)
+    assert np.array_equal(z[bnd], bad[bnd])  # the boundary is locked
+    z2, info2 = refine.repaired_layout(s.uv_true, s.F, g, loops)
+    assert z2 is None and info2["reason"] == "nothing flipped"
+
+
+def test_repaired_layout_refuses_many_flips():
+    s = shapes.cylinder_patch()
+    disk = refine.build_disk(s.V, s.F)
+    g, _ = refine.surface_gradients(s.V, s.F)
+    mirrored = s.uv_true * np.array([1.0, -1.0])  # every face flipped
+    z, info = refine.repaired_layout(mirrored, s.F, g, [disk.outer, *disk.holes])
+    assert z is None and info["reason"] == "too many flips to repair"
+
+
+def test_refine_starts_from_a_repaired_mds_layout_when_it_is_better():
+    """A spherical cap: a near-optimal layout with one fold (as a noisy scan's MDS has a few) beats LSCM (1% above
+    an isometry) once repaired, and the refinement starts from it."""
+    d = shapes.flat_disk()  # 4.5k faces: up to 4 flips are repaired
+    V = shapes.lift_sphere(d.V[:, :2], 1.2)
+    good, _ = pipeline.parameterize(V, d.F)
+    disk = refine.build_disk(V, d.F)
+    folded = _with_a_fold(good, d.F, np.concatenate([disk.outer, *disk.holes]))
+    x, rep = refine.refine(V, d.F, folded)
+    st = rep["start"]
+    assert st["flips"] > 0 and st["repair"]["repaired"] and st["layout"] == "mds"
+    assert st["energy"]["mds"] < st["energy"]["lscm"]
+    assert rep["bijective"]

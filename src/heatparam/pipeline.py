@@ -273,19 +273,20 @@ def _start_checks(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress, c
         return lscm, None, None
     with prog.stage("fold check"):
         fc = _coarse_fold_check(V, F, lscm.uv, opts)
-    if not (fc.get("flips") or fc.get("crossings")):
+    if fc.get("usable", True):
         return lscm, None, fc
-    return lscm, (f"skipped: the MDS layout of a {fc['vertices']}-vertex coarse mesh is not bijective "
-                  f"({fc['flips']} of {fc['faces']} triangles flipped, {fc['crossings']} boundary crossings), so "
-                  "the full one would not be a start for the refinement either; it starts from LSCM "
-                  "(--mds-start always computes them)"), fc
+    return lscm, (f"skipped: the MDS layout of a {fc['vertices']}-vertex coarse mesh is not bijective, even after "
+                  f"repair ({fc['flips']} of {fc['faces']} triangles flipped, {fc['crossings']} boundary "
+                  "crossings), so the full one would not be a start for the refinement either; it starts from "
+                  "LSCM (--mds-start always computes them)"), fc
 
 
 #: Meshes of at least this many vertices whose LSCM start is bijective but not isometric get a fold check: the
 #: fill, geodesics and MDS run first on a coarse mesh (1/8 of the vertices, ``refine.coarse_vertices`` triangulated
-#: in the LSCM layout); if that MDS layout is not bijective the full one is not computed. Folding is a property of
-#: the shape (camelhead: 53% of the coarse triangles flipped at 11k and 51% at 45k, 59% and 58% of the full ones);
-#: a coarse layout that does not fold proves nothing, and the full heat stage runs (beetle: 0 flips coarse, 1 full).
+#: in the LSCM layout); if that MDS layout is not bijective, even after ``refine.repaired_layout``, the full one is
+#: not computed. Folding is a property of the shape (camelhead: 53% of the coarse triangles flipped at 11k and 51%
+#: at 45k, 59% and 58% of the full ones); a coarse layout that does not fold proves nothing, and the full heat stage
+#: runs (beetle: 0 flips coarse, 1 full).
 FOLD_CHECK_MIN_VERTICES = 30_000
 
 
@@ -301,12 +302,17 @@ def _coarse_fold_check(V: np.ndarray, F: np.ndarray, uv: np.ndarray, opts: Optio
         loops = [disk.outer, *disk.holes]
         ids = refine.coarse_vertices(V, F, loops, max(int(len(V) * refine.COARSE_FRACTION), refine.COARSE_MIN))
         T = refine.coarse_mesh(uv, loops, ids)
-        _, rep = parameterize(V[ids], T, replace(opts, refine="none", progress=False))
+        uvc, rep = parameterize(V[ids], T, replace(opts, refine="none", progress=False))
+        m = rep["metrics"]
+        out = {"vertices": len(ids), "faces": len(T), "flips": m["flips"], "crossings": m["boundary_crossings"],
+               "fill": rep["method"]["fill"]["used"], "seconds": round(sum(rep["timings_s"].values()), 3)}
+        out["usable"] = not (m["flips"] or m["boundary_crossings"])
+        if m["flips"]:  # the refinement repairs a few flips of the MDS start: so does the check
+            g, _ = refine.surface_gradients(V[ids], T)
+            out["usable"] = refine.repaired_layout(uvc, T, g, refine.loop_ranges(loops))[0] is not None
     except (HeatparamError, ValueError, RuntimeError, np.linalg.LinAlgError) as exc:  # only a shortcut
         return {"failed": str(exc)}
-    m = rep["metrics"]
-    return {"vertices": len(ids), "faces": len(T), "flips": m["flips"], "crossings": m["boundary_crossings"],
-            "fill": rep["method"]["fill"]["used"], "seconds": round(sum(rep["timings_s"].values()), 3)}
+    return out
 
 
 def _heat_stage_optional(opts: Options) -> bool:

@@ -250,14 +250,14 @@ DECREMENT_TOL = 1e-3  # converged at once when the Newton decrement predicts les
 STALL_ITERS = 5  # the polish gives up after this many barrier-limited iterations in a row that gain < tol
 
 
-def _loop_ranges(loops: list[np.ndarray]) -> list[np.ndarray]:
+def loop_ranges(loops: list[np.ndarray]) -> list[np.ndarray]:
     """Where each loop sits in ``np.concatenate(loops)``: one index range per loop."""
     ends = np.cumsum([len(lp) for lp in loops])
     return [np.arange(e - len(lp), e) for e, lp in zip(ends, loops, strict=True)]
 
 
 def _loop_edges(ranges: list[np.ndarray]) -> np.ndarray:
-    """Closed-polygon edges (e,2) of the index ranges of :func:`_loop_ranges`."""
+    """Closed-polygon edges (e,2) of the index ranges of :func:`loop_ranges`."""
     return np.vstack([np.column_stack([k, np.roll(k, -1)]) for k in ranges])
 
 
@@ -282,7 +282,7 @@ def build_scaffold(uv: np.ndarray, loops: list[np.ndarray]) -> Scaffold:
     lo, hi = P.min(axis=0), P.max(axis=0)
     c, r = 0.5 * (lo + hi), (0.5 + SCAFFOLD_MARGIN) * float((hi - lo).max())
     box = c + r * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
-    E = np.vstack([_loop_edges(_loop_ranges(loops)), len(ids) + np.array([[0, 1], [1, 2], [2, 3], [3, 0]])])
+    E = np.vstack([_loop_edges(loop_ranges(loops)), len(ids) + np.array([[0, 1], [1, 2], [2, 3], [3, 0]])])
     try:
         P2, T = gpy.triangulate_polygon(np.vstack([P, box]), E, a=0.0, q=0.0, steiner=False)
     except (ValueError, RuntimeError) as exc:  # CDT: crossing constraints, duplicate points
@@ -542,7 +542,7 @@ def coarse_mesh(uv: np.ndarray, loops: list[np.ndarray], ids: np.ndarray) -> np.
 
     P = uv[ids]
     try:
-        P2, T = gpy.triangulate_polygon(P, _loop_edges(_loop_ranges(loops)), a=0.0, q=0.0, steiner=False)
+        P2, T = gpy.triangulate_polygon(P, _loop_edges(loop_ranges(loops)), a=0.0, q=0.0, steiner=False)
     except (ValueError, RuntimeError) as exc:
         raise ValueError(f"coarse triangulation failed: {exc}") from exc
     if len(P2) != len(ids):
@@ -657,7 +657,7 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
     except ValueError as exc:
         return None, info | {"used": False, "reason": str(exc)}
     gc, ac = surface_gradients(V[ids], T)
-    cloops = _loop_ranges(loops)  # the coarse mesh's boundary loops: its first vertices, in loop order
+    cloops = loop_ranges(loops)  # the coarse mesh's boundary loops: its first vertices, in loop order
     locked = np.zeros(n, dtype=bool)
     locked[ids[:nb]] = True  # the boundary is the coarse one: polished, bijective, kept as is
     local = np.full(n, -1, dtype=np.int64)
@@ -743,6 +743,32 @@ def _is_bijective(uv: np.ndarray, F: np.ndarray, g: np.ndarray) -> tuple[int, in
 ISOMETRIC_START_EXCESS = 1e-3
 
 
+#: An MDS layout with a few flipped faces (at most this fraction, and at least 1) is repaired before it competes as a
+#: start: ``repair_flips`` with the boundary locked, accepted only when the result is bijective. A cylinder patch of
+#: 49k vertices with noise of 0.2 × the edge length: MDS had 3 flips (energy 1.079 after the repair), LSCM energy
+#: 4.69; polish 13 instead of 26 Newton iterations, the same map quality (SD 1.005365, iso 1.0563).
+MDS_REPAIR_MAX_FRACTION = 1e-3
+
+
+def repaired_layout(x: np.ndarray, F: np.ndarray, g: np.ndarray, loops: list[np.ndarray]
+                    ) -> tuple[np.ndarray | None, dict]:
+    """``x`` (n,2) made bijective by :func:`repair_flips` if only a few of its faces are flipped
+    (≤ ``MDS_REPAIR_MAX_FRACTION``), with the boundary loops locked; (layout or None, report)."""
+    flips = int((_det(jacobians(x, F, g)) <= 0).sum())
+    if flips == 0:
+        return None, {"flips": 0, "repaired": False, "reason": "nothing flipped"}
+    if flips > max(1, MDS_REPAIR_MAX_FRACTION * len(F)):
+        return None, {"flips": flips, "repaired": False, "reason": "too many flips to repair"}
+    locked = np.zeros(len(x), dtype=bool)
+    locked[np.concatenate(loops)] = True
+    z, _, rounds = repair_flips(x, x, F, g, locked)
+    if z is None:
+        return None, {"flips": flips, "repaired": False, "reason": f"flips remain after {rounds} rounds"}
+    if metrics.boundary_crossings(z, F):
+        return None, {"flips": flips, "repaired": False, "reason": "the boundary crosses itself"}
+    return z, {"flips": flips, "repaired": True, "rounds": rounds}
+
+
 class LscmStart(NamedTuple):
     """The LSCM layout as a start candidate: the layout (None if it failed), flips, crossings (-1 when not
     counted), its energy per area / 4 (1 = isometry; None unless bijective) and why it failed."""
@@ -784,9 +810,10 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, opts=None, progr
            ) -> tuple[np.ndarray, dict]:
     """Make the MDS layout ``uv`` (n,2) of (V (n,3), F (m,3)) bijective and near-isometric (true scale).
 
-    Start: of the MDS layout and the LSCM layout (``lscm`` if given, else :func:`lscm_start` with ``conformal()``
-    — the fill decision already computed it), the bijective one (no flipped face, no crossing of any boundary
-    loop) with the lower energy; if neither is bijective, the Tutte embedding of the mesh with its holes fanned.
+    Start: of the MDS layout (a few flipped faces repaired: :func:`repaired_layout`) and the LSCM layout (``lscm``
+    if given, else :func:`lscm_start` with ``conformal()`` — the fill decision already computed it), the bijective
+    one (no flipped face, no crossing of any boundary loop) with the lower energy; if neither is bijective, the
+    Tutte embedding of the mesh with its holes fanned.
     ``uv=None``: no MDS layout was computed (the pipeline found it could not win: ``pipeline._start_checks``).
     Then :func:`polish` with the scaffold.
 
@@ -811,7 +838,10 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, opts=None, progr
         x = np.asarray(uv, dtype=np.float64)
         flips, cross = _is_bijective(x, F, g)
         report["start"] = {"flips": flips, "crossings": cross}
-        if not (flips or cross):
+        if flips:  # crossings are only counted when nothing is flipped; a repaired layout has none
+            x, report["start"]["repair"] = repaired_layout(x, F, g, [disk.outer, *disk.holes])
+            cross = 0
+        if x is not None and not cross:
             cands["mds"], energy["mds"] = x, _energy(x, F, g, area)
     if lscm.failed is not None:
         report["start"]["lscm_failed"] = lscm.failed
