@@ -250,14 +250,14 @@ DECREMENT_TOL = 1e-3  # converged at once when the Newton decrement predicts les
 STALL_ITERS = 5  # the polish gives up after this many barrier-limited iterations in a row that gain < tol
 
 
-def loop_ranges(loops: list[np.ndarray]) -> list[np.ndarray]:
+def _loop_ranges(loops: list[np.ndarray]) -> list[np.ndarray]:
     """Where each loop sits in ``np.concatenate(loops)``: one index range per loop."""
     ends = np.cumsum([len(lp) for lp in loops])
     return [np.arange(e - len(lp), e) for e, lp in zip(ends, loops, strict=True)]
 
 
 def _loop_edges(ranges: list[np.ndarray]) -> np.ndarray:
-    """Closed-polygon edges (e,2) of the index ranges of :func:`loop_ranges`."""
+    """Closed-polygon edges (e,2) of the index ranges of :func:`_loop_ranges`."""
     return np.vstack([np.column_stack([k, np.roll(k, -1)]) for k in ranges])
 
 
@@ -282,7 +282,7 @@ def build_scaffold(uv: np.ndarray, loops: list[np.ndarray]) -> Scaffold:
     lo, hi = P.min(axis=0), P.max(axis=0)
     c, r = 0.5 * (lo + hi), (0.5 + SCAFFOLD_MARGIN) * float((hi - lo).max())
     box = c + r * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
-    E = np.vstack([_loop_edges(loop_ranges(loops)), len(ids) + np.array([[0, 1], [1, 2], [2, 3], [3, 0]])])
+    E = np.vstack([_loop_edges(_loop_ranges(loops)), len(ids) + np.array([[0, 1], [1, 2], [2, 3], [3, 0]])])
     try:
         P2, T = gpy.triangulate_polygon(np.vstack([P, box]), E, a=0.0, q=0.0, steiner=False)
     except (ValueError, RuntimeError) as exc:  # CDT: crossing constraints, duplicate points
@@ -542,7 +542,7 @@ def coarse_mesh(uv: np.ndarray, loops: list[np.ndarray], ids: np.ndarray) -> np.
 
     P = uv[ids]
     try:
-        P2, T = gpy.triangulate_polygon(P, _loop_edges(loop_ranges(loops)), a=0.0, q=0.0, steiner=False)
+        P2, T = gpy.triangulate_polygon(P, _loop_edges(_loop_ranges(loops)), a=0.0, q=0.0, steiner=False)
     except (ValueError, RuntimeError) as exc:
         raise ValueError(f"coarse triangulation failed: {exc}") from exc
     if len(P2) != len(ids):
@@ -657,7 +657,7 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
     except ValueError as exc:
         return None, info | {"used": False, "reason": str(exc)}
     gc, ac = surface_gradients(V[ids], T)
-    cloops = loop_ranges(loops)  # the coarse mesh's boundary loops: its first vertices, in loop order
+    cloops = _loop_ranges(loops)  # the coarse mesh's boundary loops: its first vertices, in loop order
     locked = np.zeros(n, dtype=bool)
     locked[ids[:nb]] = True  # the boundary is the coarse one: polished, bijective, kept as is
     local = np.full(n, -1, dtype=np.int64)
