@@ -98,10 +98,11 @@ def min_time_step(op: Operators) -> float:
 
 def underflow_warning(op: Operators, t: float) -> str | None:
     """A warning when t (given explicitly) is too small for the surface's size: far distances are then wrong."""
-    t_min = min_time_step(op)
+    bound = diameter_bound(op)
+    t_min = (bound / DECAY_RANGE) ** 2
     if t >= t_min:
         return None
-    return (f"time step {t:.3g} is too small for this surface (it spans {diameter_bound(op) / np.sqrt(t):.0f} √t, "
+    return (f"time step {t:.3g} is too small for this surface (it spans {bound / np.sqrt(t):.0f} √t, "
             f"the heat kernel underflows beyond ~{DECAY_RANGE:.0f} √t): far distances will be wrong; use "
             f"--time-step default or at least {t_min:.3g}")
 

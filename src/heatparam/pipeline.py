@@ -59,10 +59,11 @@ class Options:
     mds_start : with ``refine``, ``auto`` skips the fill, heat geodesics and MDS when the LSCM layout is already
         bijective and within ``refine.ISOMETRIC_START_EXCESS`` (0.1%) of an isometry in energy — the MDS layout
         is then only a start candidate that cannot be better by more than that — and, on meshes of at least
-        ``FOLD_CHECK_MIN_VERTICES``, when the MDS layout of a coarse mesh is not bijective (the full one would not
-        be a start either). The map is the same, faster; the report's ``stress_rel_rms`` is then null.
-        ``always`` computes them anyway. Nothing is skipped with
-        ``refine none`` or when ``fill``, ``geodesics``, ``landmarks`` or ``stress`` is set explicitly.
+        ``FOLD_CHECK_MIN_VERTICES``, when the MDS layout of a coarse mesh folds beyond what the refinement repairs
+        (the full one would not be a start either). The map is the same, faster; the report's ``stress_rel_rms``
+        is then null.
+        ``always`` computes them anyway. Nothing is skipped with ``refine none`` or when ``fill``, ``geodesics``,
+        ``landmarks`` or ``stress`` is set explicitly.
     refine_multilevel : meshes with at least this many vertices are polished coarse-to-fine (a coarse mesh of
         about 1/8 of the vertices is polished first and prolongated; ``refine.coarse_to_fine``); 0 = never.
     refine_iters : iteration cap of the symmetric Dirichlet polish.
@@ -204,14 +205,20 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
         uv0.setflags(write=False)
         return uv0
 
+    @functools.cache
+    def gradients() -> tuple[np.ndarray, np.ndarray]:  # the refinement's per-face gradients and areas, once
+        from heatparam import refine
+
+        return refine.surface_gradients(Vc, Fc)
+
     with prog.stage("fill decision"):
         fill_used, fill_reason = _decide_fill(opts, Vc, Fc, info, conformal)
     fill_report: dict = {"used": fill_used, "reason": fill_reason}
-    lscm, skipped, fold_check = _start_checks(Vc, Fc, opts, prog, conformal)
+    lscm, skipped, fold_check = _start_checks(Vc, Fc, opts, prog, conformal, gradients)
     if skipped is not None:
         if fill_used:
             fill_report.update(used=False, skipped=skipped)
-        uvc, refine_report = _refined(Vc, Fc, None, opts, prog, conformal, lscm)
+        uvc, refine_report = _refined(Vc, Fc, None, opts, prog, conformal, gradients, lscm)
         summary = _metrics(Vc, Fc, uvc, prog, None)
         method = {"geodesics": skipped, "solver_backend": None, "fill": fill_report,
                   "stress": {"method": "none"}, "refine": refine_report, "mass_matrix": opts.mass,
@@ -247,7 +254,7 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
         surface = FillSurface(M.V, M.F, layout.uv_surface * flip, uvc.copy(), fill_report.get("method", ""))
     refine_report: dict = {"method": opts.refine}
     if opts.refine != "none":
-        uvc, refine_report = _refined(Vc, Fc, uvc, opts, prog, conformal, lscm)
+        uvc, refine_report = _refined(Vc, Fc, uvc, opts, prog, conformal, gradients, lscm)
     summary = _metrics(Vc, Fc, uvc, prog, layout)
     method = {"geodesics": layout.mode, "solver_backend": layout.backend, "fill": fill_report,
               "stress": layout.stress or {"method": "none"}, "refine": refine_report, "mass_matrix": opts.mass,
@@ -255,7 +262,8 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     return _result(V, F, keep, uvc, summary, opts, method, layout, info, prog, warnings, surface)
 
 
-def _start_checks(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress, conformal: Callable[[], np.ndarray]
+def _start_checks(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress, conformal: Callable[[], np.ndarray],
+                  gradients: Callable[[], tuple[np.ndarray, np.ndarray]]
                   ) -> tuple[LscmStart | None, str | None, dict | None]:
     """Whether the fill, geodesics and MDS can be skipped (``mds_start auto``): (the LSCM start judged by
     ``refine.lscm_start`` or None, why the heat stage is skipped or None, the fold check's report or None)."""
@@ -264,7 +272,7 @@ def _start_checks(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress, c
     from heatparam import refine
 
     with prog.stage("start check"):
-        lscm = refine.lscm_start(V, F, conformal)
+        lscm = refine.lscm_start(V, F, conformal, gradients())
     if lscm.near_isometric:
         return lscm, (f"skipped: the LSCM layout is bijective and within {refine.ISOMETRIC_START_EXCESS:g} of an "
                       f"isometry (energy {lscm.energy:.7f}), so it starts the refinement (--mds-start always "
@@ -320,12 +328,13 @@ def _heat_stage_optional(opts: Options) -> bool:
 
 
 def _refined(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, opts: Options, prog: Progress,
-             conformal: Callable[[], np.ndarray], lscm: LscmStart | None) -> tuple[np.ndarray, dict]:
+             conformal: Callable[[], np.ndarray], gradients: Callable[[], tuple[np.ndarray, np.ndarray]],
+             lscm: LscmStart | None) -> tuple[np.ndarray, dict]:
     """``refine.refine`` of the layout ``uv`` (None: LSCM starts) as the "refine" stage."""
     from heatparam import refine
 
     with prog.stage("refine"):
-        return refine.refine(V, F, uv, opts, progress=prog, conformal=conformal, lscm=lscm)
+        return refine.refine(V, F, uv, opts, progress=prog, conformal=conformal, lscm=lscm, surface=gradients())
 
 
 def _metrics(V: np.ndarray, F: np.ndarray, uv: np.ndarray, prog: Progress, layout: Layout | None) -> dict:

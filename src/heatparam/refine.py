@@ -807,7 +807,7 @@ def lscm_start(V: np.ndarray, F: np.ndarray, conformal: Callable[[], np.ndarray]
 
 def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, opts=None, progress=None,
            conformal: Callable[[], np.ndarray] | None = None, lscm: LscmStart | None = None,
-           ) -> tuple[np.ndarray, dict]:
+           surface: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, dict]:
     """Make the MDS layout ``uv`` (n,2) of (V (n,3), F (m,3)) bijective and near-isometric (true scale).
 
     Start: of the MDS layout (a few flipped faces repaired: :func:`repaired_layout`) and the LSCM layout (``lscm``
@@ -815,7 +815,7 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, opts=None, progr
     one (no flipped face, no crossing of any boundary loop) with the lower energy; if neither is bijective, the
     Tutte embedding of the mesh with its holes fanned.
     ``uv=None``: no MDS layout was computed (the pipeline found it could not win: ``pipeline._start_checks``).
-    Then :func:`polish` with the scaffold.
+    Then :func:`polish` with the scaffold. ``surface``: :func:`surface_gradients` of (V, F) if already computed.
 
     Returns the refined layout (n,2) and a JSON-able report of what was done.
     """
@@ -825,7 +825,7 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, opts=None, progr
     tol = float(getattr(opts, "refine_tol", 1e-6))
     n = len(V)
     disk = build_disk(V, F)
-    g, area = surface_gradients(V, F)
+    g, area = surface if surface is not None else surface_gradients(V, F)
     report: dict = {"method": "sd", "holes": len(disk.holes)}
 
     if lscm is None:
