@@ -98,11 +98,11 @@ def min_time_step(op: Operators) -> float:
 
 def underflow_warning(op: Operators, t: float) -> str | None:
     """A warning when t (given explicitly) is too small for the surface's size: far distances are then wrong."""
-    bound = diameter_bound(op)
-    t_min = (bound / DECAY_RANGE) ** 2
+    t_min = min_time_step(op)
     if t >= t_min:
         return None
-    return (f"time step {t:.3g} is too small for this surface (it spans {bound / np.sqrt(t):.0f} √t, "
+    span = DECAY_RANGE * np.sqrt(t_min / t)  # the diameter bound in units of √t
+    return (f"time step {t:.3g} is too small for this surface (it spans {span:.0f} √t, "
             f"the heat kernel underflows beyond ~{DECAY_RANGE:.0f} √t): far distances will be wrong; use "
             f"--time-step default or at least {t_min:.3g}")
 

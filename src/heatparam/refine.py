@@ -93,6 +93,11 @@ def symmetric_dirichlet(J: np.ndarray, w: np.ndarray) -> tuple[float, np.ndarray
     return float(np.dot(w, e)) if np.all(d > 0) else float("inf"), e
 
 
+def _energy(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray) -> float:
+    """Symmetric Dirichlet energy per area / 4 of a layout (1 = isometry)."""
+    return symmetric_dirichlet(jacobians(uv, F, g), area / area.sum())[0] / 4
+
+
 def max_step(J: np.ndarray, D: np.ndarray) -> float:
     """Largest t ≤ ∞ such that det(J + sD) > 0 for all s in [0, t) (per-face quadratic, first positive root)."""
     c = _det(J)
@@ -696,7 +701,7 @@ def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[n
     ``MULTILEVEL_FINE_TOL_FACTOR`` × ``tol``. Returns (layout (n,2), polish report, coarse-to-fine report)."""
     if not 0 < min_vertices <= len(V):
         ml: dict = {"used": False, "reason": "small mesh"}
-    elif not symmetric_dirichlet(jacobians(x, F, g), area / area.sum())[0] / 4 > 1.0 + MULTILEVEL_MIN_EXCESS:
+    elif not _energy(x, F, g, area) > 1.0 + MULTILEVEL_MIN_EXCESS:
         ml = {"used": False, "reason": "the start is already within 1% of an isometry"}
     else:
         try:
@@ -784,11 +789,6 @@ class LscmStart(NamedTuple):
         return self.energy is not None and self.energy - 1.0 <= ISOMETRIC_START_EXCESS
 
 
-def _energy(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray) -> float:
-    """Symmetric Dirichlet energy per area / 4 of a layout (1 = isometry)."""
-    return symmetric_dirichlet(jacobians(uv, F, g), area / area.sum())[0] / 4
-
-
 def lscm_start(V: np.ndarray, F: np.ndarray, conformal: Callable[[], np.ndarray] | None = None,
                surface: tuple[np.ndarray, np.ndarray] | None = None) -> LscmStart:
     """The LSCM layout of (V, F) (``conformal()`` if given, else computed) judged as a start for the polish.
@@ -825,6 +825,7 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, opts=None, progr
     tol = float(getattr(opts, "refine_tol", 1e-6))
     n = len(V)
     disk = build_disk(V, F)
+    loops = [disk.outer, *disk.holes]
     g, area = surface if surface is not None else surface_gradients(V, F)
     report: dict = {"method": "sd", "holes": len(disk.holes)}
 
@@ -839,7 +840,7 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, opts=None, progr
         flips, cross = _is_bijective(x, F, g)
         report["start"] = {"flips": flips, "crossings": cross}
         if flips:  # crossings are only counted when nothing is flipped; a repaired layout has none
-            x, report["start"]["repair"] = repaired_layout(x, F, g, [disk.outer, *disk.holes])
+            x, report["start"]["repair"] = repaired_layout(x, F, g, loops)
             cross = 0
         if x is not None and not cross:
             cands["mds"], energy["mds"] = x, _energy(x, F, g, area)
@@ -858,7 +859,6 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, opts=None, progr
         x, start = tutte(V, disk, backend)[:n], "tutte"
     report["start"]["layout"] = start
     ml_min = int(getattr(opts, "refine_multilevel", MULTILEVEL_MIN_VERTICES))
-    loops = [disk.outer, *disk.holes]
     # One OpenBLAS thread: the polish's vector work is small, and OpenBLAS threads on it cost 10-60% on 2 cores
     # (2.2 s vs 2.5 s on camelhead alone, 6.2 s with another process busy). MKL (PARDISO) keeps its threads.
     with ThreadpoolController().select(internal_api="openblas").limit(limits=1):
