@@ -15,7 +15,7 @@ import sys
 import time
 
 import numpy as np
-from common import machine
+from common import machine, noisy_cylinder_patch
 
 from heatparam import pipeline, shapes
 
@@ -24,21 +24,20 @@ NOISE = (0.0, 0.02, 0.05, 0.1, 0.2)
 
 def main() -> None:
     target = int(sys.argv[1]) if len(sys.argv) > 1 else 50_000
-    s = shapes.cylinder_patch(h=0.04 * float(np.sqrt(2213 / target)))  # 2213 vertices at the default h
-    h = float(np.mean(np.linalg.norm(s.V[s.F[:, 1]] - s.V[s.F[:, 0]], axis=1)))
+    V0, F, uv_true = noisy_cylinder_patch(target, 0.0, 0)
+    h = float(np.mean(np.linalg.norm(V0[F[:, 1]] - V0[F[:, 0]], axis=1)))
     print(f"# Scan noise on a developable part — {time.strftime('%Y-%m-%d')} — {machine()}\n")
-    print(f"cylinder_patch, {len(s.V)} vertices, mean edge h = {h:.4g}; noise σ per coordinate.\n")
+    print(f"cylinder_patch, {len(V0)} vertices, mean edge h = {h:.4g}; noise σ per coordinate.\n")
     print("| σ / h | E start MDS | E start LSCM | start | Newton it | iso mean | layout err | s always | s auto | "
           "auto skipped | same map |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
-    rng = np.random.default_rng(0)
-    for sig in NOISE:
-        V = s.V + sig * h * rng.standard_normal(s.V.shape)
+    for draw, sig in enumerate(NOISE):
+        V, _, _ = noisy_cylinder_patch(target, sig, draw)
         t = time.perf_counter()
-        uv, rep = pipeline.parameterize(V, s.F, mds_start="always")
+        uv, rep = pipeline.parameterize(V, F, mds_start="always")
         t_always = time.perf_counter() - t
         t = time.perf_counter()
-        uv2, rep2 = pipeline.parameterize(V, s.F)
+        uv2, rep2 = pipeline.parameterize(V, F)
         t_auto = time.perf_counter() - t
         r = rep["method"]["refine"]
         e = r["start"].get("energy", {})
@@ -47,7 +46,7 @@ def main() -> None:
         why = ("nothing" if not skipped.startswith("skipped") else
                "heat stage (coarse MDS folds)" if "coarse mesh" in skipped else "heat stage (LSCM near-isometric)")
         print(f"| {sig:g} | {e_mds} | {e_lscm} | {r['start']['layout']} | {r['polish']['iterations']} | "
-              f"{rep['metrics']['iso_mean']:.5f} | {shapes.layout_error(uv, s.uv_true):.2e} | {t_always:.2f} | "
+              f"{rep['metrics']['iso_mean']:.5f} | {shapes.layout_error(uv, uv_true):.2e} | {t_always:.2f} | "
               f"{t_auto:.2f} | {why} | {'yes' if np.array_equal(uv, uv2) else 'NO'} |", flush=True)
 
 

@@ -10,28 +10,18 @@ from __future__ import annotations
 
 import time
 
-import numpy as np
-from common import load, machine, upsampled_camelhead
+from common import load, machine, noisy_cylinder_patch, upsampled_camelhead
 
-from heatparam import pipeline, shapes
+from heatparam import pipeline
 
 TOLS = (1e-6, 1e-5)
-
-
-def noisy_patch(target: int, sigma: float, draw: int) -> tuple[np.ndarray, np.ndarray]:
-    """bench_noise.py's noisy patch: the ``draw``-th noise field of seed 0, scaled by sigma × the mean edge."""
-    s = shapes.cylinder_patch(h=0.04 * float(np.sqrt(2213 / target)))
-    h = float(np.mean(np.linalg.norm(s.V[s.F[:, 1]] - s.V[s.F[:, 0]], axis=1)))
-    rng = np.random.default_rng(0)
-    noise = [rng.standard_normal(s.V.shape) for _ in range(draw + 1)][draw]
-    return s.V + sigma * h * noise, s.F
 
 
 def main() -> None:
     cases = [(name, *load(name)[:2]) for name in ("camelhead.off", "beetle.off", "halftunnel.off")]
     cases.append(("camelhead↑182k", *upsampled_camelhead(200_000)))
-    cases.append(("cylinder_patch 196k, noise 0.05 h", *noisy_patch(200_000, 0.05, 2)))
-    cases.append(("cylinder_patch 196k, noise 0.1 h", *noisy_patch(200_000, 0.1, 3)))
+    cases.append(("cylinder_patch 196k, noise 0.05 h", *noisy_cylinder_patch(200_000, 0.05, 2)[:2]))
+    cases.append(("cylinder_patch 196k, noise 0.1 h", *noisy_cylinder_patch(200_000, 0.1, 3)[:2]))
     print(f"# Refinement tolerance — {time.strftime('%Y-%m-%d')} — {machine()}\n")
     print("| mesh | refine_tol | s | Newton it (last level) | SD energy | iso mean | iso p95 |")
     print("|---|---|---|---|---|---|---|")

@@ -66,3 +66,17 @@ import resource, sys
 def peak_mb():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 """
+
+
+def noisy_cylinder_patch(target: int, sigma: float, draw: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A generated cylinder patch of about ``target`` vertices with scanner-like noise: the ``draw``-th
+    (n,3) standard normal field of seed 0 times ``sigma`` × the mean edge length, added to the vertices.
+    Returns (V, F, uv_true): uv_true is the noise-free flat layout."""
+    from heatparam import shapes
+
+    s = shapes.cylinder_patch(h=0.04 * float(np.sqrt(2213 / target)))  # 2213 vertices at the default h
+    h = float(np.mean(np.linalg.norm(s.V[s.F[:, 1]] - s.V[s.F[:, 0]], axis=1)))
+    rng = np.random.default_rng(0)
+    noise = [rng.standard_normal(s.V.shape) for _ in range(draw + 1)][draw]
+    return s.V + sigma * h * noise, s.F, s.uv_true
+
