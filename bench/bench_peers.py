@@ -5,7 +5,8 @@ Columns: flips, boundary crossings, iso mean/p95, conformal mean, area mean (``m
 scale-normalized), SD = true-scale symmetric Dirichlet energy per area / 4 (1 = isometry; the energy SLIM and our
 polish minimize; "–" where a face is flipped), true-scale layout error (``shapes.layout_error``, only where
 ``uv_true`` is known; maps that are not at true scale are first scaled by ``uv_scale`` and marked ``*``), seconds
-(wall), notes (our start layout and polish iterations). After each table: the best flip-free and the best bijective
+(wall), notes (our start layout and polish iterations, seams). On meshes with holes the default (``seams auto``) is
+also run with ``--seams none`` (one uncut piece). After each table: the best flip-free and the best bijective
 peer, and SLIM's time over ours.
 """
 
@@ -56,28 +57,31 @@ def slim(V, F, uv0, iters=100):
     return np.asarray(igl.slim_solve(data, iters))[:, :2]
 
 
-def sd_energy(V, F, uv) -> float:
-    """Σ A_f (|J|² + |J⁻¹|²) / (4 Σ A_f) at true scale; nan if any face is flipped."""
+def sd_energy(V, F, uv, Fuv=None) -> float:
+    """Σ A_f (|J|² + |J⁻¹|²) / (4 Σ A_f) at true scale; nan if any face is flipped. Fuv: uv rows per corner."""
     g, area = refine.surface_gradients(V, F)
-    J = refine.jacobians(uv, F, g)
+    J = refine.jacobians(uv, F if Fuv is None else Fuv, g)
     if (refine._det(J) <= 0).any():
         return float("nan")
     return refine.symmetric_dirichlet(J, area / area.sum())[0] / 4
 
 
-def row(method, V, F, uv, seconds, uv_true, true_scale, notes=""):
-    s = metrics.summary(V, F, uv)
+def row(method, V, F, uv, seconds, uv_true, true_scale, notes="", result=None):
+    """One table row; ``result``: a pipeline Result, whose map may have seams (uv rows per seam side)."""
+    Fuv, uv_vertex = (None, np.arange(len(uv))) if result is None else (result.Fuv, result.uv_vertex)
+    s = metrics.summary(V, F, uv, Fuv)
     if uv_true is not None:
         mark = "" if true_scale else "*"
-        le = f"{shapes.layout_error(uv * (1.0 if true_scale else s['uv_scale']), uv_true):.2e}{mark}"
+        le = f"{shapes.layout_error(uv * (1.0 if true_scale else s['uv_scale']), uv_true[uv_vertex]):.2e}{mark}"
     else:
         le = "–"
-    sd = sd_energy(V, F, uv) if true_scale else float("nan")
+    sd = sd_energy(V, F, uv, Fuv) if true_scale else float("nan")
     line = (f"| {method} | {s['flips']} | {s['boundary_crossings']} | {s['iso_mean']:.4f} | {s['iso_p95']:.4f} | "
             f"{s['conformal_mean']:.4f} | {s['area_mean']:.4f} | {'–' if np.isnan(sd) else f'{sd:.5f}'} | {le} | "
             f"{seconds:.2f} | {notes} |")
+    seams = result.report["method"]["seams"].get("seams", 0) if result is not None and result.seamed else 0
     return line, {"method": method, "flips": s["flips"], "crossings": s["boundary_crossings"],
-                  "iso": s["iso_mean"], "seconds": seconds}
+                  "iso": s["iso_mean"], "seconds": seconds, "seams": seams}
 
 
 def timed(fn, *a):
@@ -87,10 +91,11 @@ def timed(fn, *a):
 
 
 def _notes(rep: dict) -> str:
-    r = rep["method"]["refine"]
+    r, seams = rep["method"]["refine"], rep["method"]["seams"]
+    cut = f"; {seams['seams']} seams, {seams['length']:.3g} long" if seams["used"] else ""
     if "polish" not in r:
-        return ""
-    return f"start {r['start']['layout']}, {r['polish']['iterations']} it, {r['polish']['stop']}"
+        return cut[2:]
+    return f"start {r['start']['layout']}, {r['polish']['iterations']} it, {r['polish']['stop']}{cut}"
 
 
 def bench(name: str) -> list[str]:
@@ -102,10 +107,13 @@ def bench(name: str) -> list[str]:
     rows = []
     for label, kw in (("heatparam raw (refine none, fill none)", {"refine": "none", "fill": "none"}),
                       ("heatparam filled (fill poisson, refine none)", {"refine": "none", "fill": "poisson"}),
-                      ("heatparam default", {})):
+                      ("heatparam default", {}),
+                      ("heatparam default, --seams none", {"seams": "none"})):
+        if label.endswith("--seams none") and len(metrics.boundary_loops(F)) == 1:
+            continue  # no holes: the default row is this row
         try:
-            (uv, rep), dt = timed(lambda kw=kw: pipeline.parameterize(V, F, **kw))
-            line, r = row(label, V, F, uv, dt, uvt, True, _notes(rep))
+            res, dt = timed(lambda kw=kw: pipeline.parameterize(V, F, **kw))
+            line, r = row(label, V, F, res.uv, dt, uvt, True, _notes(res.report), res)
             out.append(line)
             rows.append(r)
         except Exception as exc:  # e.g. --fill poisson is refused on planar meshes
@@ -147,7 +155,8 @@ def summary_line(rows: list[dict]) -> str:
         return f"{b['method'][7:]} {b['iso']:.4f} ({b['crossings']} crossings)"
 
     lo, hi = min(slim) / ours["seconds"], max(slim) / ours["seconds"]
-    return (f"**heatparam default** {ours['iso']:.4f}, {ours['flips']} flips, {ours['crossings']} crossings, "
+    cut = f", {ours['seams']} seams" if ours["seams"] else ""
+    return (f"**heatparam default** {ours['iso']:.4f}, {ours['flips']} flips, {ours['crossings']} crossings{cut}, "
             f"{ours['seconds']:.2f} s. Best flip-free ARAP/SLIM: {best(flip_free)}. Best bijective peer: "
             f"{best(bijective)}. SLIM time / ours: {lo:.1f}–{hi:.1f}×.")
 

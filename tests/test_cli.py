@@ -278,3 +278,27 @@ def test_mds_start_option_reaches_the_report(tmp_path, patch_off):
     assert auto["method"]["geodesics"].startswith("skipped") and auto["metrics"]["stress_rel_rms"] is None
     assert always["method"]["geodesics"] in ("all-pairs", "landmarks") and always["metrics"]["stress_rel_rms"] > 0
     assert auto["metrics"]["iso_mean"] == always["metrics"]["iso_mean"]
+
+
+def test_unwrap_with_seams_writes_vt_per_seam_side(tmp_path):
+    """halftunnel: the default cuts its holes open (report and warning say so); the OBJ keeps v and f v in input
+    order and has more vt than v; `evaluate` on it reproduces the report's metrics. --seams none: one vt per v."""
+    src = shared_mesh("halftunnel.off")
+    V, F = io.load_mesh(src)
+    out, rep, prev = tmp_path / "h.obj", tmp_path / "h.json", tmp_path / "h.png"
+    assert main(["unwrap", str(src), "-o", str(out), "--report", str(rep), "--preview", str(prev), "--quiet"]) == 0
+    r = json.loads(rep.read_text())
+    seams = r["method"]["seams"]
+    assert seams["used"] and any("seams" in w for w in r["warnings"])
+    V2, F2, UV, FUV = io.load_uv_obj(out)
+    assert np.array_equal(V2, V) and np.array_equal(F2, F)
+    assert len(UV) == len(V) + seams["split_vertices"] and not np.array_equal(FUV, F)
+    ev = tmp_path / "ev.json"
+    assert main(["evaluate", str(out), "--report", str(ev), "--quiet"]) == 0
+    m = json.loads(ev.read_text())["metrics"]
+    assert m["bijective"] and m["iso_mean"] == pytest.approx(r["metrics"]["iso_mean"], rel=1e-9)
+    assert prev.read_bytes()[:4] == b"\x89PNG"
+    one = tmp_path / "one.obj"
+    assert main(["unwrap", str(src), "-o", str(one), "--seams", "none", "--quiet"]) == 0
+    _, _, UV1, FUV1 = io.load_uv_obj(one)
+    assert len(UV1) == len(V) and np.array_equal(FUV1, F)

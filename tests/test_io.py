@@ -39,6 +39,18 @@ def test_obj_round_trip_exact(tmp_path, mesh):
     assert np.array_equal(UV, uv) and np.array_equal(FUV, F)
 
 
+def test_obj_with_seams_round_trip(tmp_path, mesh):
+    """A map with seams: vt rows per seam side, f v/vt with different indices; v and F unchanged."""
+    V, F = mesh
+    Fuv = np.arange(F.size).reshape(F.shape)[::-1].copy()  # one vt per corner, in another order
+    uv = np.random.default_rng(0).random((F.size, 2))
+    p = tmp_path / "s.obj"
+    io.save_uv_obj(p, V, F, uv, Fuv=Fuv)
+    V2, F2, UV, FUV = io.load_uv_obj(p)
+    assert np.array_equal(V2, V) and np.array_equal(F2, F)
+    assert np.array_equal(UV, uv) and np.array_equal(FUV, Fuv)
+
+
 def test_quads_and_polygons_triangulated(tmp_path):
     p = tmp_path / "q.obj"
     p.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 1 0\nf 1 2 3 4\nf 2 5 6 3\n")

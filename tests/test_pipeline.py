@@ -208,3 +208,86 @@ def test_noisy_developable_scan_starts_from_the_heat_method_layout():
     assert rep["metrics"]["iso_mean"] < 1.06  # measured 1.0554
     full, _ = parameterize(V, s.F, mds_start="always")
     assert np.array_equal(uv, full)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# seams (issue 5: crossings resolved by cutting, the issue's last resort, where the holes cost distortion)
+# ----------------------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def halftunnel():
+    from conftest import shared_mesh
+
+    from heatparam import io
+
+    return io.load_mesh(shared_mesh("halftunnel.off"))
+
+
+@pytest.fixture(scope="module")
+def halftunnel_maps(halftunnel):
+    V, F = halftunnel
+    return parameterize(V, F), parameterize(V, F, seams="none")
+
+
+def _slim_from_tutte(V, F, iters=100):
+    """libigl SLIM (symmetric Dirichlet, 100 iterations) from a Tutte start: the peer of issue 5."""
+    import igl
+
+    from heatparam.mesh import boundary_loops
+
+    b = boundary_loops(V, F)[0]
+    uv0 = igl.harmonic(V, F, b, igl.map_vertices_to_circle(V, b.astype(np.int32)), 1)
+    data = igl.slim_precompute(V, F.astype(np.int32), uv0, igl.MappingEnergyType.SYMMETRIC_DIRICHLET,
+                               np.zeros(0, np.int32), np.zeros((0, 2)))
+    return np.asarray(igl.slim_solve(data, iters))[:, :2]
+
+
+def test_seams_cut_the_holes_where_they_cost_distortion(halftunnel, halftunnel_maps):
+    """halftunnel: the bijective map without seams has to squeeze the band between a hole and the border
+    (iso 1.536); libigl SLIM lets that hole's side cross the border instead (flip-free, not bijective). The
+    default cuts both holes open to the border: bijective and below SLIM's distortion, measured here."""
+    from heatparam import metrics
+
+    V, F = halftunnel
+    cut, whole = halftunnel_maps
+    s = cut.report["method"]["seams"]
+    assert s["used"] and s["seams"] == 2 and s["split_vertices"] > 0 and not whole.seamed
+    assert cut.seamed and cut.uv.shape == (len(V) + s["split_vertices"], 2) and cut.Fuv.shape == F.shape
+    assert np.array_equal(cut.uv_vertex[cut.Fuv], F)  # every corner's UV row belongs to that corner's vertex
+    m, mw = cut.report["metrics"], whole.report["metrics"]
+    assert m["flips"] == 0 and m["boundary_crossings"] == 0 and mw["bijective"]
+    assert s["iso_mean_without"] == mw["iso_mean"] and s["iso_mean_with"] == m["iso_mean"]
+    assert m["iso_mean"] <= (1 - 0.02) * mw["iso_mean"]
+    again = metrics.summary(V, F, cut.uv, cut.Fuv)  # the report's metrics are those of the written map
+    assert again["iso_mean"] == pytest.approx(m["iso_mean"], rel=1e-12) and again["bijective"]
+    assert any("seams" in w for w in cut.report["warnings"])
+    assert cut.report["method"]["without_seams"]["metrics"]["iso_mean"] == mw["iso_mean"]
+    slim = metrics.summary(V, F, _slim_from_tutte(V, F))
+    print(f"halftunnel iso: seams {m['iso_mean']:.4f}, none {mw['iso_mean']:.4f}, SLIM {slim['iso_mean']:.4f} "
+          f"({slim['flips']} flips, {slim['boundary_crossings']} crossings)")
+    assert slim["flips"] == 0 and m["iso_mean"] <= slim["iso_mean"]
+
+
+def test_seams_none_and_no_holes_keep_one_uv_per_vertex(halftunnel, halftunnel_maps, cylinder):
+    V, F = halftunnel
+    whole = halftunnel_maps[1]
+    assert whole.uv.shape == (len(V), 2) and np.array_equal(whole.Fuv, F)
+    assert whole.report["method"]["seams"] == {"mode": "none", "used": False, "reason": "disabled (--seams none)"}
+    r = parameterize(cylinder.V, cylinder.F)
+    assert r.report["method"]["seams"]["reason"] == "no holes" and np.array_equal(r.uv_vertex, np.arange(len(r.uv)))
+
+
+def test_seams_auto_leaves_near_isometric_parts_with_holes_uncut():
+    sh = shapes.cylinder_with_holes()
+    r = parameterize(sh.V, sh.F)
+    s = r.report["method"]["seams"]
+    assert not s["used"] and "near-isometric" in s["reason"] and r.uv.shape == (len(sh.V), 2)
+    h = parameterize(sh.V, sh.F, seams="holes")  # asked for: cut, and still an isometry (a developable part)
+    assert h.seamed and h.report["metrics"]["bijective"] and h.report["metrics"]["iso_mean"] < 1.001
+    assert h.report["method"]["fill"]["used"] is False and "seams" in h.report["method"]["fill"]["reason"]
+    assert shapes.layout_error(h.uv, sh.uv_true[h.uv_vertex]) < 1e-3
+
+
+def test_seams_deterministic(halftunnel, halftunnel_maps):
+    V, F = halftunnel
+    again = parameterize(V, F)
+    assert np.array_equal(again.uv, halftunnel_maps[0].uv) and np.array_equal(again.Fuv, halftunnel_maps[0].Fuv)

@@ -13,7 +13,15 @@ from pathlib import Path
 
 from heatparam import __version__
 from heatparam.errors import HeatparamError
-from heatparam.pipeline import FILL_MODES, GEODESIC_MODES, MDS_START_MODES, REFINE_MODES, STRESS_MODES, Options
+from heatparam.pipeline import (
+    FILL_MODES,
+    GEODESIC_MODES,
+    MDS_START_MODES,
+    REFINE_MODES,
+    SEAM_MODES,
+    STRESS_MODES,
+    Options,
+)
 
 EXIT_BAD_INPUT = 2
 
@@ -57,7 +65,8 @@ def build_parser() -> argparse.ArgumentParser:
     u = sub.add_parser("unwrap", help="flatten a mesh and write an OBJ with UVs",
                        description="Flatten a disk-like mesh (with holes) into the plane at true scale.")
     u.add_argument("input", help="mesh file (.obj .off .ply .stl .glb)")
-    u.add_argument("-o", "--output", required=True, help="output OBJ (v in input order, one vt per vertex)")
+    u.add_argument("-o", "--output", required=True, help="output OBJ (v in input order; one vt per vertex, or per "
+                   "seam side when the map has seams)")
     u.add_argument("--fill", choices=FILL_MODES, default=d.fill,
                    help="fill surface M* for holes/concave borders: auto decides from the mesh (and uses the "
                         "biharmonic fill), poisson = the paper's screened Poisson surface (default: %(default)s)")
@@ -78,6 +87,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "the MDS layout of a 1/8 coarse mesh folds (curved scans): the same map, faster; "
                         "stress_rel_rms is then null; always = compute them as a start candidate anyway "
                         "(default: %(default)s)")
+    u.add_argument("--seams", choices=SEAM_MODES, default=d.seams,
+                   help="cut holes open to the border along the shortest surface paths: auto = when the map "
+                        "without seams is more than 1%% from an isometry, keep the cut one if it lowers the mean "
+                        "isometric distortion by 2%% or more (reported, with a warning); holes = always; none = "
+                        "never, one uncut piece (default: %(default)s)")
     u.add_argument("--refine-multilevel", type=int, default=d.refine_multilevel, metavar="N",
                    help="meshes of at least N vertices are polished coarse-to-fine (a ~1/8-size coarse mesh "
                         "first; docs/refine.md); 0 = never (default: %(default)s)")
@@ -133,24 +147,26 @@ def cmd_unwrap(args: argparse.Namespace) -> int:
     V, F = io.load_mesh(args.input)
     opts = Options(fill=args.fill, geodesics=args.geodesics, landmarks=args.landmarks, time_step=args.time_step,
                    t_coef=args.t_coef, solver=args.solver, seed=args.seed, refine=args.refine,
-                   refine_multilevel=args.refine_multilevel, mds_start=args.mds_start, stress=args.stress,
-                   fill_depth=args.fill_depth, progress=not args.quiet)
+                   refine_multilevel=args.refine_multilevel, mds_start=args.mds_start, seams=args.seams,
+                   stress=args.stress, fill_depth=args.fill_depth, progress=not args.quiet)
     result = parameterize(V, F, opts)
-    uv, report = result
-    report["input"] = str(args.input)
-    _write_results(V, F, uv, report, out, rep, prev, quiet=args.quiet, fill_surface=result.fill_surface)
+    result.report["input"] = str(args.input)
+    _write_results(V, F, result, out, rep, prev, quiet=args.quiet)
     return 0
 
 
-def _write_results(V, F, uv, report, out: Path, rep: Path | None, prev: Path | None, quiet: bool,
-                   fill_surface=None) -> None:
+def _write_results(V, F, result, out: Path, rep: Path | None, prev: Path | None, quiet: bool) -> None:
+    """Preview (optional), OBJ and report (optional) of a pipeline ``Result``, each written atomically."""
     from heatparam import io
 
+    uv, report = result
     if prev is not None:
         from heatparam import render
 
-        render.save_preview(prev, V, F, uv, title=Path(report.get("input", out.stem)).name, fill_surface=fill_surface)
-    io.save_uv_obj(out, V, F, uv, header=f"heatparam {__version__}: vt = true-scale UV (model units)")
+        render.save_preview(prev, V[result.uv_vertex], result.Fuv, uv, title=Path(report.get("input", out.stem)).name,
+                            fill_surface=result.fill_surface)
+    io.save_uv_obj(out, V, F, uv, header=f"heatparam {__version__}: vt = true-scale UV (model units)",
+                   Fuv=result.Fuv)
     if rep is not None:
         io.save_json(rep, report)
     if not quiet:
@@ -228,9 +244,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
     uv, report = result
     report["input"] = f"generated:{shape.name}"
     if shape.uv_true is not None:
-        report["metrics"]["layout_error_rel"] = shapes.layout_error(uv, shape.uv_true)
-    _write_results(shape.V, shape.F, uv, report, outdir / "demo.obj", outdir / "demo-report.json",
-                   outdir / "demo-preview.png", quiet=args.quiet, fill_surface=result.fill_surface)
+        report["metrics"]["layout_error_rel"] = shapes.layout_error(uv, shape.uv_true[result.uv_vertex])
+    _write_results(shape.V, shape.F, result, outdir / "demo.obj", outdir / "demo-report.json",
+                   outdir / "demo-preview.png", quiet=args.quiet)
     if not args.quiet:
         print(f"demo: {shape.name} ({len(shape.V)} vertices) → {outdir}/demo.obj, demo-report.json, "
               "demo-preview.png", file=sys.stderr)

@@ -218,15 +218,18 @@ def atomic_write(path: str | os.PathLike, mode: str = "w"):
         raise
 
 
-def save_uv_obj(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.ndarray, header: str = "") -> None:
-    """Write an OBJ: ``v`` = V in input order, one ``vt`` per vertex (same index), faces ``f v/vt``."""
+def save_uv_obj(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.ndarray, header: str = "",
+                Fuv: np.ndarray | None = None) -> None:
+    """Write an OBJ: ``v`` = V in input order, ``vt`` = uv, faces ``f v/vt``: vt index = v index (one vt per
+    vertex) or, with ``Fuv`` (m,3), the rows of uv at each face's corners (a map with seams)."""
+    Fuv = F if Fuv is None else Fuv
     with atomic_write(path) as fh:
         if header:
             fh.write("".join(f"# {line}\n" for line in header.splitlines()))
         # repr() of a float is the shortest text that reads back to the same float: exact round trip
         fh.write(("v %r %r %r\n" * len(V)) % tuple(np.asarray(V, dtype=np.float64).ravel().tolist()))
         fh.write(("vt %r %r\n" * len(uv)) % tuple(np.asarray(uv, dtype=np.float64).ravel().tolist()))
-        f1 = (np.asarray(F, dtype=np.int64) + 1).repeat(2, axis=1)
+        f1 = np.stack([np.asarray(F, dtype=np.int64), np.asarray(Fuv, dtype=np.int64)], axis=2) + 1
         fh.write(("f %d/%d %d/%d %d/%d\n" * len(F)) % tuple(f1.ravel().tolist()))
 
 

@@ -220,3 +220,101 @@ def validate_mesh(V: np.ndarray, F: np.ndarray, flatten: bool = True) -> MeshInf
 #: Outer border length² / area below which a surface counts as nearly closed. A flat disk has 4π ≈ 12.6, a
 #: hemisphere 2π ≈ 6.3, the strongly curved camelhead.off 1.0, stanford-bunny.obj (a sphere with 5 small holes) 0.23.
 NEARLY_CLOSED_RATIO = 0.5
+
+
+# ----------------------------------------------------------------------------------------------------------
+# seams: cutting holes open to the border
+# ----------------------------------------------------------------------------------------------------------
+def edge_graph(F: np.ndarray, lengths: np.ndarray, n: int) -> sp.csr_matrix:
+    """The mesh's edge graph as a sparse (n, n) matrix of edge lengths, one direction per half-edge (use
+    ``directed=False`` in ``scipy.sparse.csgraph``). lengths : (m,3), column c the edge opposite corner c."""
+    E = np.concatenate([F[:, [1, 2]], F[:, [2, 0]], F[:, [0, 1]]])
+    return sp.csr_matrix((np.asarray(lengths).T.ravel(), (E[:, 0], E[:, 1])), shape=(n, n))
+
+
+def edge_lengths(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(m,3) float64: column c is the length of the edge opposite corner c."""
+    return np.stack([np.linalg.norm(V[F[:, (c + 2) % 3]] - V[F[:, (c + 1) % 3]], axis=1) for c in range(3)], axis=1)
+
+
+def hole_seams(V: np.ndarray, F: np.ndarray, loops: list[np.ndarray]) -> list[np.ndarray]:
+    """Shortest edge paths on the surface that join every hole to the border: a minimum spanning tree of the
+    boundary loops under surface distance.
+
+    One multi-source Dijkstra from all boundary vertices splits the surface into the loops' regions (a Voronoi
+    diagram of the loops); every edge between two regions offers a path loop → edge → loop of length
+    d(u) + |uv| + d(v), and the minimum spanning tree of the loops over the shortest such offers (Mehlhorn's
+    construction) picks ``len(loops) - 1`` of them. Cutting along them (:func:`cut_open`) leaves a disk.
+    Each path runs through interior vertices only, between its two end vertices on different loops.
+
+    Parameters
+    ----------
+    V : (n,3) float64. F : (m,3) int64. loops : boundary vertex loops (e.g. ``MeshInfo.boundary_loops``).
+
+    Returns
+    -------
+    list of (k_i,) int64 vertex paths, shortest first (empty when there is a single loop).
+    """
+    from scipy.sparse.csgraph import dijkstra, minimum_spanning_tree
+
+    if len(loops) < 2:
+        return []
+    n = len(V)
+    graph = edge_graph(F, edge_lengths(V, F), n)
+    owner = np.full(n, -1, dtype=np.int64)
+    for i, lp in enumerate(loops):
+        owner[lp] = i
+    bnd = np.flatnonzero(owner >= 0)
+    dist, pred, src = dijkstra(graph, directed=False, indices=bnd, min_only=True, return_predecessors=True)
+    region = np.where(src >= 0, owner[np.maximum(src, 0)], -1)
+    E = np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1), axis=0)
+    u, v = E[:, 0], E[:, 1]
+    across = (region[u] != region[v]) & (region[u] >= 0) & (region[v] >= 0)
+    u, v = u[across], v[across]
+    cost = dist[u] + np.linalg.norm(V[u] - V[v], axis=1) + dist[v]
+    a, b = np.minimum(region[u], region[v]), np.maximum(region[u], region[v])
+    L = len(loops)
+    order = np.lexsort((cost, b, a))  # per loop pair, the cheapest edge first
+    pair = a[order] * L + b[order]
+    first = order[np.r_[True, pair[1:] != pair[:-1]]]
+    # the MST needs positive weights; a tie at 0 (an edge between two loops' vertices has length > 0) cannot occur
+    offers = sp.csr_matrix((cost[first], (a[first], b[first])), shape=(L, L))
+    tree = minimum_spanning_tree(offers).tocoo()
+    chosen = {(int(min(r, c)), int(max(r, c))) for r, c in zip(tree.row, tree.col, strict=True)}
+    paths = []
+    for e in first:
+        if (int(a[e]), int(b[e])) not in chosen:
+            continue
+        paths.append((float(cost[e]), np.array(_back(pred, u[e])[::-1] + _back(pred, v[e]), dtype=np.int64)))
+    paths.sort(key=lambda p: p[0])
+    return [p for _, p in paths]
+
+
+def _back(pred: np.ndarray, v: int) -> list[int]:
+    """The vertices from v back to its Dijkstra source (v first)."""
+    out = [int(v)]
+    while pred[out[-1]] >= 0:
+        out.append(int(pred[out[-1]]))
+    return out
+
+
+def cut_open(V: np.ndarray, F: np.ndarray, paths: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Cut the mesh along vertex paths (``igl.cut_mesh``): every vertex on a path is split into one copy per side.
+
+    Returns
+    -------
+    Vs : (n_s,3) float64, the vertices with path vertices duplicated. Fs : (m,3) int64, F row for row, corners
+    redirected to the copies. source : (n_s,) int64, the input vertex of each row of Vs.
+    """
+    n = len(V)
+    if not paths:
+        return V.copy(), F.copy(), np.arange(n, dtype=np.int64)
+    P = np.concatenate([np.stack([p[:-1], p[1:]], axis=1) for p in paths])
+    cut_keys = np.minimum(P[:, 0], P[:, 1]) * n + np.maximum(P[:, 0], P[:, 1])
+    C = np.zeros(F.shape, dtype=bool)
+    for j in range(3):
+        a, b = F[:, j], F[:, (j + 1) % 3]
+        C[:, j] = np.isin(np.minimum(a, b) * n + np.maximum(a, b), cut_keys)
+    Vs, Fs, source = igl.cut_mesh(np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F, dtype=np.int64),
+                                  C)
+    return np.asarray(Vs), np.asarray(Fs, dtype=np.int64), np.asarray(source, dtype=np.int64)

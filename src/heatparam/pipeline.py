@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from heatparam import __version__, heat, mds, metrics
+from heatparam import __version__, heat, mds, mesh, metrics
 from heatparam.errors import HeatparamError
 from heatparam.memory import peak_rss_bytes, require
 from heatparam.mesh import MeshInfo, validate_mesh
@@ -28,6 +28,7 @@ FILL_MODES = ("auto", "poisson", "biharmonic", "none")
 GEODESIC_MODES = ("auto", "all-pairs", "landmarks")
 STRESS_MODES = ("none", "smacof")
 MDS_START_MODES = ("auto", "always")
+SEAM_MODES = ("auto", "holes", "none")
 
 
 @dataclass
@@ -64,6 +65,15 @@ class Options:
         is then null.
         ``always`` computes them anyway. Nothing is skipped with ``refine none`` or when ``fill``, ``geodesics``,
         ``landmarks`` or ``stress`` is set explicitly.
+    seams : cutting holes open to the border (``mesh.hole_seams``: the shortest surface paths that join every hole
+        to the border, a minimum spanning tree). A map must keep each hole a hole, and where the surface's
+        curvature pushes a hole's side over another boundary (the crossings of libigl's SLIM maps on halftunnel and
+        beetle) the bijective map has to squeeze the band between them. ``auto`` (default, with ``refine``): when
+        the map is bijective-limited like that — mean isometric distortion above ``1 + SEAM_TRY_EXCESS`` on a
+        mesh with holes — flatten the cut-open mesh too and keep it if it is bijective and lowers the mean
+        isometric distortion by at least ``SEAM_MIN_GAIN``; ``holes`` always cuts; ``none`` never. A seamed map
+        has one UV row per seam side (``Result.Fuv``; the OBJ's ``f v/vt`` indices differ) and says so in the
+        report (``method.seams``) and a warning.
     refine_multilevel : meshes with at least this many vertices are polished coarse-to-fine (a coarse mesh of
         about 1/8 of the vertices is polished first and prolongated; ``refine.coarse_to_fine``); 0 = never.
     refine_iters : iteration cap of the symmetric Dirichlet polish.
@@ -84,6 +94,7 @@ class Options:
     fill_depth: int = 0
     refine: str = "sd"
     mds_start: str = "auto"
+    seams: str = "auto"
     stress: str = "none"
     refine_multilevel: int = MULTILEVEL_MIN_VERTICES
     refine_iters: int = 200
@@ -105,6 +116,7 @@ class Options:
         _choice("refine", self.refine, REFINE_MODES)
         _choice("stress", self.stress, STRESS_MODES)
         _choice("mds_start", self.mds_start, MDS_START_MODES)
+        _choice("seams", self.seams, SEAM_MODES)
         if self.refine_multilevel < 0:
             raise HeatparamError(f"refine_multilevel must be 0 (never) or a vertex count, got {self.refine_multilevel}")
         if self.fill_depth < 0:
@@ -144,13 +156,20 @@ class FillSurface(NamedTuple):
 class Result(tuple):
     """What :func:`parameterize` returns; unpacks as ``uv, report``.
 
-    uv : (n,2) float64, uv[i] the image of input vertex i. report : the JSON-able report.
+    uv : (n_uv,2) float64, the map. Without seams n_uv = n and uv[i] is the image of input vertex i. With seams
+        (``report["method"]["seams"]["used"]``) every vertex on a seam has one row per side.
+    report : the JSON-able report.
+    Fuv : (m,3) int64, the rows of ``uv`` at each face's corners (F itself without seams): OBJ's ``f v/vt``.
+    uv_vertex : (n_uv,) int64, the input vertex of each row of ``uv`` (``arange(n)`` without seams).
     fill_surface : a :class:`FillSurface` when a fill was used (for ``--preview``), else None.
     """
 
-    def __new__(cls, uv: np.ndarray, report: dict, fill_surface: FillSurface | None = None):
+    def __new__(cls, uv: np.ndarray, report: dict, fill_surface: FillSurface | None = None,
+                Fuv: np.ndarray | None = None, uv_vertex: np.ndarray | None = None):
         self = super().__new__(cls, (uv, report))
         self.fill_surface = fill_surface
+        self.Fuv = Fuv
+        self.uv_vertex = uv_vertex if uv_vertex is not None else np.arange(len(uv), dtype=np.int64)
         return self
 
     @property
@@ -160,6 +179,11 @@ class Result(tuple):
     @property
     def report(self) -> dict:
         return self[1]
+
+    @property
+    def seamed(self) -> bool:
+        """Whether the map has seams (``uv`` rows are not the input's vertices)."""
+        return bool(self.report["method"]["seams"]["used"])
 
 
 def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, **kwargs) -> Result:
@@ -196,6 +220,28 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     remap = np.full(len(V), -1, dtype=np.int64)
     remap[keep] = np.arange(len(keep))
     Vc, Fc = V[keep], remap[F]
+    flat = _flatten(Vc, Fc, info, opts, prog, warnings)
+    seams = _seams(Vc, Fc, info, opts, prog, warnings, flat)
+    if seams is not None:
+        flat, cut = seams
+        return _result(V, F, keep, flat, opts, info, prog, warnings, cut)
+    return _result(V, F, keep, flat, opts, info, prog, warnings)
+
+
+class Flat(NamedTuple):
+    """One flattening of a (compacted) mesh: the map, its metrics and how it was made."""
+
+    uv: np.ndarray
+    summary: dict
+    method: dict
+    layout: Layout | None
+    surface: FillSurface | None
+
+
+def _flatten(Vc: np.ndarray, Fc: np.ndarray, info: MeshInfo, opts: Options, prog: Progress, warnings: list[str],
+             seamed: bool = False) -> Flat:
+    """The stages on a validated mesh without unreferenced vertices (``seamed``: cut open by ``_seams``, whose
+    seams a fill would close again, so ``fill auto`` means none)."""
 
     # M's LSCM layout: the fill's provisional layout and the refinement's fallback start; computed at most once,
     # shared read-only.
@@ -212,7 +258,10 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
         return refine.surface_gradients(Vc, Fc)
 
     with prog.stage("fill decision"):
-        fill_used, fill_reason = _decide_fill(opts, Vc, Fc, info, conformal)
+        if seamed and opts.fill == "auto":
+            fill_used, fill_reason = False, "not on a mesh cut open along seams (a fill would close them)"
+        else:
+            fill_used, fill_reason = _decide_fill(opts, Vc, Fc, info, conformal)
     fill_report: dict = {"used": fill_used, "reason": fill_reason}
     lscm, skipped, fold_check = _start_checks(Vc, Fc, opts, prog, conformal, gradients)
     if skipped is not None:
@@ -223,7 +272,7 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
         method = {"geodesics": skipped, "solver_backend": None, "fill": fill_report,
                   "stress": {"method": "none"}, "refine": refine_report, "mass_matrix": opts.mass,
                   "mollified_edge_length": None, "fold_check": fold_check}
-        return _result(V, F, keep, uvc, summary, opts, method, None, info, prog, warnings, None)
+        return Flat(uvc, summary, method, None, None)
     M = None
     if fill_used:
         from heatparam import fill
@@ -259,7 +308,80 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     method = {"geodesics": layout.mode, "solver_backend": layout.backend, "fill": fill_report,
               "stress": layout.stress or {"method": "none"}, "refine": refine_report, "mass_matrix": opts.mass,
               "mollified_edge_length": layout.mollify_eps, "fold_check": fold_check}
-    return _result(V, F, keep, uvc, summary, opts, method, layout, info, prog, warnings, surface)
+    return Flat(uvc, summary, method, layout, surface)
+
+
+#: ``seams auto`` tries the cut-open mesh only when the map's mean isometric distortion exceeds 1 by more than this
+#: (developable parts with holes are at 1.0000 already: nothing to gain) ...
+SEAM_TRY_EXCESS = 0.01
+#: ... and keeps it only when it lowers the mean isometric distortion by at least this fraction (measured,
+#: BENCHMARKS.md §6: halftunnel 1.536 → 1.18, beetle 1.080 → 1.02).
+SEAM_MIN_GAIN = 0.02
+
+
+class Cut(NamedTuple):
+    """A mesh cut open along seams: vertices V (n_s,3), faces F (m,3) (the input's, row for row), I (n_s,) the
+    compacted vertex each row of V copies (``source``), paths the seams' vertex paths (compacted ids)."""
+
+    V: np.ndarray
+    F: np.ndarray
+    source: np.ndarray
+    paths: list[np.ndarray]
+
+
+def _seams(Vc: np.ndarray, Fc: np.ndarray, info: MeshInfo, opts: Options, prog: Progress, warnings: list[str],
+           flat: Flat) -> tuple[Flat, Cut] | None:
+    """``Options.seams``: the flattening of the mesh cut open from every hole to the border when it is asked for
+    or (``auto``) clearly better than ``flat``; None keeps ``flat``. Both cases write ``method["seams"]``."""
+    rep: dict = {"mode": opts.seams, "used": False}
+    flat.method["seams"] = rep
+    iso = flat.summary["iso_mean"]
+    if opts.seams == "none":
+        rep["reason"] = "disabled (--seams none)"
+        return None
+    if info.n_holes == 0:
+        rep["reason"] = "no holes"
+        return None
+    if opts.seams == "auto":
+        if opts.refine == "none":
+            rep["reason"] = "the raw map (--refine none) is not cut (--seams holes cuts it)"
+            return None
+        if flat.summary["bijective"] and iso <= 1 + SEAM_TRY_EXCESS:
+            rep["reason"] = f"the map without seams is bijective and near-isometric (iso mean {iso:.4f})"
+            return None
+    with prog.stage("seams"):
+        paths = mesh.hole_seams(Vc, Fc, info.boundary_loops)
+        Vs, Fs, src = mesh.cut_open(Vc, Fc, paths)
+        try:
+            info_s = validate_mesh(Vs, Fs)
+        except HeatparamError as exc:  # a seam set that does not leave a disk (never seen): keep the map
+            rep["reason"] = f"the cut-open mesh is not a disk ({exc})"
+            return None
+    lengths = [float(np.linalg.norm(np.diff(Vc[p], axis=0), axis=1).sum()) for p in paths]
+    rep.update(seams=len(paths), length=round(sum(lengths), 9), longest=round(max(lengths), 9),
+               split_vertices=int(len(Vs) - len(Vc)), iso_mean_without=iso)
+    cut_warnings: list[str] = []
+    cut = _flatten(Vs, Fs, info_s, opts, prog, cut_warnings, seamed=True)
+    iso_s = cut.summary["iso_mean"]
+    rep.update(iso_mean_with=iso_s, bijective_with=cut.summary["bijective"])
+    if opts.seams == "auto":
+        better = cut.summary["bijective"] and (not flat.summary["bijective"] or iso_s <= iso * (1 - SEAM_MIN_GAIN))
+        if not better:
+            rep["reason"] = (f"the cut-open map is not {SEAM_MIN_GAIN:.0%} better (iso mean {iso_s:.4f} vs "
+                             f"{iso:.4f}{'' if cut.summary['bijective'] else ', not bijective'}); kept without seams")
+            return None
+        rep["reason"] = (f"the holes cost distortion: iso mean {iso:.4f} without seams, {iso_s:.4f} with "
+                         f"{len(paths)} (--seams none keeps one uncut piece)")
+    else:
+        rep["reason"] = "requested (--seams holes)"
+    rep["used"] = True
+    cut.method["seams"] = rep
+    cut.method["without_seams"] = {"refine": flat.method["refine"], "metrics": flat.summary}
+    warnings += cut_warnings
+    warnings.append(f"the map has seams: {len(paths)} cut(s), {sum(lengths):.6g} long in all, join the holes to "
+                    f"the border (iso mean {iso:.4f} → {iso_s:.4f}); the OBJ's vt rows split along them "
+                    "(--seams none: one uncut piece)")
+    return cut, Cut(Vs, Fs, src, paths)
 
 
 def _start_checks(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress, conformal: Callable[[], np.ndarray],
@@ -346,13 +468,18 @@ def _metrics(V: np.ndarray, F: np.ndarray, uv: np.ndarray, prog: Progress, layou
     return summary
 
 
-def _result(V: np.ndarray, F: np.ndarray, keep: np.ndarray, uvc: np.ndarray, summary: dict, opts: Options,
-            method: dict, layout: Layout | None, info: MeshInfo, prog: Progress, warnings: list[str],
-            surface: FillSurface | None) -> Result:
-    """The map of every input vertex (unreferenced ones at the centroid) and the report."""
-    uv = np.zeros((len(V), 2))
-    uv[keep] = uvc
-    uv[~info.referenced] = uvc.mean(axis=0)
+def _result(V: np.ndarray, F: np.ndarray, keep: np.ndarray, flat: Flat, opts: Options, info: MeshInfo,
+            prog: Progress, warnings: list[str], cut: Cut | None = None) -> Result:
+    """The map of every input vertex (unreferenced ones at the centroid), or of every seam side with ``cut``,
+    and the report."""
+    uvc, summary, method, layout = flat.uv, flat.summary, flat.method, flat.layout
+    if cut is None:
+        uv = np.zeros((len(V), 2))
+        uv[keep] = uvc
+        uv[~info.referenced] = uvc.mean(axis=0)
+        Fuv, uv_vertex = F, np.arange(len(V), dtype=np.int64)
+    else:  # the cut mesh's faces are F's, row for row, in compacted and then split vertex ids
+        uv, Fuv, uv_vertex = uvc, cut.F, keep[cut.source]
     if summary["flips"] or summary["boundary_crossings"]:
         warnings.append(
             f"the map is not bijective: {summary['flips']} flipped triangles, "
@@ -373,7 +500,7 @@ def _result(V: np.ndarray, F: np.ndarray, keep: np.ndarray, uvc: np.ndarray, sum
         "machine": {"python": platform.python_version(), "platform": platform.platform()},
         "warnings": warnings,
     }
-    return Result(uv, report, surface)
+    return Result(uv, report, flat.surface, Fuv, uv_vertex)
 
 
 def _decide_fill(opts: Options, V: np.ndarray, F: np.ndarray, info: MeshInfo,
