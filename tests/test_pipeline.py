@@ -215,9 +215,9 @@ def test_noisy_developable_scan_starts_from_the_heat_method_layout():
 # ----------------------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def halftunnel():
-    from conftest import shared_mesh
-
     from heatparam import io
+
+    from conftest import shared_mesh
 
     return io.load_mesh(shared_mesh("halftunnel.off"))
 

@@ -197,7 +197,8 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     Returns
     -------
     Result(uv (n,2) float64, report dict): uv[i] is the image of V[i]; the report holds the parameters,
-    per-stage timings, mesh facts and the map's metrics (see README).
+    per-stage timings, mesh facts and the map's metrics (see README). With seams (``Options.seams``,
+    ``Result.seamed``) uv has one row per seam side: face f's corners map to ``uv[Result.Fuv[f]]``.
     """
     opts = Options(**{**(asdict(options) if options else {}), **kwargs})
     opts.validate()
