@@ -7,7 +7,8 @@ import pytest
 from scipy.sparse.csgraph import dijkstra
 
 from heatparam import metrics, shapes
-from heatparam.mesh import cut_open, edge_graph, edge_lengths, hole_seams, validate_mesh
+from heatparam.mesh import cut_open, edge_graph, hole_seams, validate_mesh
+from heatparam.operators import edge_lengths
 
 
 @pytest.fixture(scope="module")

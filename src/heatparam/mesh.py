@@ -232,11 +232,6 @@ def edge_graph(F: np.ndarray, lengths: np.ndarray, n: int) -> sp.csr_matrix:
     return sp.csr_matrix((np.asarray(lengths).T.ravel(), (E[:, 0], E[:, 1])), shape=(n, n))
 
 
-def edge_lengths(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """(m,3) float64: column c is the length of the edge opposite corner c."""
-    return np.stack([np.linalg.norm(V[F[:, (c + 2) % 3]] - V[F[:, (c + 1) % 3]], axis=1) for c in range(3)], axis=1)
-
-
 def hole_seams(V: np.ndarray, F: np.ndarray, loops: list[np.ndarray]) -> list[np.ndarray]:
     """Shortest edge paths on the surface that join every hole to the border: a minimum spanning tree of the
     boundary loops under surface distance.
@@ -260,7 +255,7 @@ def hole_seams(V: np.ndarray, F: np.ndarray, loops: list[np.ndarray]) -> list[np
     if len(loops) < 2:
         return []
     n = len(V)
-    graph = edge_graph(F, edge_lengths(V, F), n)
+    graph = edge_graph(F, igl.edge_lengths(V, F), n)  # column c: the edge opposite corner c
     owner = np.full(n, -1, dtype=np.int64)
     for i, lp in enumerate(loops):
         owner[lp] = i

@@ -321,8 +321,8 @@ SEAM_MIN_GAIN = 0.02
 
 
 class Cut(NamedTuple):
-    """A mesh cut open along seams: vertices V (n_s,3), faces F (m,3) (the input's, row for row), I (n_s,) the
-    compacted vertex each row of V copies (``source``), paths the seams' vertex paths (compacted ids)."""
+    """A mesh cut open along seams: vertices V (n_s,3), faces F (m,3) (the input's, row for row), source (n_s,) the
+    compacted vertex each row of V copies, paths the seams' vertex paths (compacted ids)."""
 
     V: np.ndarray
     F: np.ndarray
