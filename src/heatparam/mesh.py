@@ -71,6 +71,11 @@ def loop_length(V: np.ndarray, loop: np.ndarray) -> float:
     return float(np.linalg.norm(V[loop] - V[np.roll(loop, -1)], axis=1).sum())
 
 
+def unique_edges(F: np.ndarray) -> np.ndarray:
+    """(e,2) int64: every edge of the triangles once, as (smaller, larger) vertex index, sorted."""
+    return np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1), axis=0)
+
+
 def validate_mesh(V: np.ndarray, F: np.ndarray, flatten: bool = True) -> MeshInfo:
     """Check that (V, F) is a single connected, orientable 2-manifold disk (possibly with holes).
 
@@ -262,7 +267,7 @@ def hole_seams(V: np.ndarray, F: np.ndarray, loops: list[np.ndarray]) -> list[np
     bnd = np.flatnonzero(owner >= 0)
     dist, pred, src = dijkstra(graph, directed=False, indices=bnd, min_only=True, return_predecessors=True)
     region = np.where(src >= 0, owner[np.maximum(src, 0)], -1)
-    E = np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1), axis=0)
+    E = unique_edges(F)
     u, v = E[:, 0], E[:, 1]
     across = (region[u] != region[v]) & (region[u] >= 0) & (region[v] >= 0)
     u, v = u[across], v[across]

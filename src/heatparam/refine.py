@@ -33,6 +33,7 @@ from threadpoolctl import ThreadpoolController
 
 from heatparam import metrics
 from heatparam.errors import HeatparamError
+from heatparam.mesh import unique_edges
 from heatparam.operators import edge_lengths, intrinsic_areas, local_triangles, mollify
 from heatparam.solvers import Factor, large_system_backend
 
@@ -156,8 +157,7 @@ def tutte(V: np.ndarray, disk: Disk, backend: str = "auto") -> np.ndarray:
     """Uniform-weight Tutte embedding of the disk (surface + fans), outer loop on a circle of its 3D perimeter."""
     N = disk.n + len(disk.holes)
     F = disk.F
-    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    E = np.unique(np.sort(E, axis=1), axis=0)
+    E = unique_edges(F)
     A = sp.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(N, N))
     A = (A + A.T).tocsr()
     L = (sp.diags(np.asarray(A.sum(axis=1)).ravel()) - A).tocsr()
