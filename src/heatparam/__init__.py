@@ -1,15 +1,27 @@
-"""heatparam: near-isometric mesh parameterization (Mejia-Parra et al. 2019)."""
+"""heatparam: near-isometric, true-scale mesh parameterization (Mejia-Parra et al. 2019).
+
+The public API, loaded lazily so that ``heatparam --help`` imports no numerics:
+
+- :func:`parameterize` (``heatparam.pipeline``): flatten a mesh, returns a :class:`Result` (``uv, report``);
+- :class:`Options` and :data:`OPTIONS` (``heatparam.options``): every knob, one table;
+- :func:`geodesic_distances` (``heatparam.heat``): heat-method geodesics in one call;
+- ``heatparam.datasets``: generated surfaces with known flat layouts; ``heatparam.formats``: reading and writing.
+"""
 
 from heatparam.errors import HeatparamError, MeshError, ResourceError
 
 __version__ = "0.1.0"
 
-__all__ = ["HeatparamError", "MeshError", "ResourceError", "__version__", "parameterize", "Options"]
+__all__ = ["OPTIONS", "HeatparamError", "MeshError", "Options", "ResourceError", "Result", "__version__",
+           "geodesic_distances", "parameterize"]
+
+_LAZY = {"parameterize": "heatparam.pipeline", "Result": "heatparam.pipeline", "Options": "heatparam.options",
+         "OPTIONS": "heatparam.options", "geodesic_distances": "heatparam.heat"}
 
 
 def __getattr__(name):  # lazy: keep `import heatparam` light for the CLI's --help
-    if name in ("parameterize", "Options"):
-        from heatparam import pipeline
+    if name in _LAZY:
+        import importlib
 
-        return getattr(pipeline, name)
+        return getattr(importlib.import_module(_LAZY[name]), name)
     raise AttributeError(name)

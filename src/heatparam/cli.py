@@ -1,7 +1,8 @@
 """The ``heatparam`` command: unwrap, geodesics, evaluate, demo.
 
+The unwrap options are generated from ``heatparam.options.OPTIONS`` (choices, defaults and help written once).
 Bad input ends with one line on stderr (``heatparam: error: ...``), exit code 2, no traceback, and no output
-file written or replaced.
+file written or replaced. Importing this module loads no numerics: ``heatparam --help`` is fast.
 """
 
 from __future__ import annotations
@@ -13,47 +14,48 @@ from pathlib import Path
 
 from heatparam import __version__
 from heatparam.errors import HeatparamError
-from heatparam.pipeline import (
-    FILL_MODES,
-    GEODESIC_MODES,
-    MDS_START_MODES,
-    REFINE_MODES,
-    SEAM_MODES,
-    STRESS_MODES,
-    Options,
-)
+from heatparam.options import Option, check_value, cli_options, help_text, make_options, to_cli_terms
 
 EXIT_BAD_INPUT = 2
+#: options shared by ``unwrap`` and ``geodesics`` (the heat method's own)
+HEAT_OPTIONS = ("time_step", "t_coef", "solver")
 
 
-def _time_step(value: str) -> str | float:
-    if value in ("default", "paper"):
-        return value
-    try:
-        t = float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected 'default', 'paper' or a positive number, got {value!r}") from None
-    if not t > 0:
-        raise argparse.ArgumentTypeError(f"time step must be positive, got {value}")
-    return t
+def _parse_value(opt: Option):
+    """argparse ``type`` for a table option: the string converted and checked by the table's rules."""
+
+    def parse(text: str):
+        value: object = text
+        if opt.kind == "int":
+            try:
+                value = int(text)
+            except ValueError:
+                raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        elif opt.kind == "float" or (opt.kind == "time" and text not in opt.choices):
+            try:
+                value = float(text)
+            except ValueError:
+                expect = "'default', 'paper' or a positive number" if opt.kind == "time" else "a number"
+                raise argparse.ArgumentTypeError(f"expected {expect}, got {text!r}") from None
+        try:
+            return check_value(opt, value)
+        except HeatparamError as exc:
+            raise argparse.ArgumentTypeError(str(exc).split("; got")[0]) from None
+
+    return parse
 
 
-def _add_heat_options(p: argparse.ArgumentParser) -> None:
-    d = Options()
-    p.add_argument("--time-step", type=_time_step, default=d.time_step, metavar="{default,paper}|FLOAT",
-                   help="heat diffusion time: default t = c·h² (scale-invariant), paper = Eq. 7 (longest edge), "
-                        "or a number (default: %(default)s)")
-    p.add_argument("--t-coef", type=float, default=d.t_coef, metavar="C",
-                   help="the c in t = c·h² for --time-step default (default: %(default)s)")
-    p.add_argument("--solver", choices=("auto", "cholespy", "scipy", "pardiso"), default=d.solver,
-                   help="sparse Cholesky/LU backend (default: %(default)s = MKL PARDISO, where installed, for the "
-                        "refinement and for the heat method on meshes of >= 100k vertices; CHOLMOD through "
-                        "cholespy otherwise)")
-    p.add_argument("--quiet", action="store_true", help="no progress output")
+def _add_option(p: argparse.ArgumentParser, opt: Option) -> None:
+    kw: dict = {"default": opt.default, "help": help_text(opt).replace("%", "%%") + " (default: %(default)s)"}
+    if opt.kind == "choice":
+        kw["choices"] = opt.choices
+    else:
+        kw["type"] = _parse_value(opt)
+        kw["metavar"] = opt.metavar
+    p.add_argument(opt.flag, dest=opt.name, **kw)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    d = Options()
     ap = argparse.ArgumentParser(
         prog="heatparam",
         description="Near-isometric (true-scale) mesh parameterization: heat-method geodesics + MDS "
@@ -67,48 +69,21 @@ def build_parser() -> argparse.ArgumentParser:
     u.add_argument("input", help="mesh file (.obj .off .ply .stl .glb)")
     u.add_argument("-o", "--output", required=True, help="output OBJ (v in input order; one vt per vertex, or per "
                    "seam side when the map has seams)")
-    u.add_argument("--fill", choices=FILL_MODES, default=d.fill,
-                   help="fill surface M* for holes/concave borders: auto decides from the mesh (and uses the "
-                        "biharmonic fill), poisson = the paper's screened Poisson surface (default: %(default)s)")
-    u.add_argument("--fill-depth", type=int, default=d.fill_depth, metavar="D",
-                   help="octree depth of the Poisson reconstruction for --fill poisson (default: automatic "
-                        "from the mesh's size and edge length, 6-9)")
-    u.add_argument("--geodesics", choices=GEODESIC_MODES, default=d.geodesics,
-                   help=f"all-pairs (paper), landmarks (O(n·k)), or auto: all-pairs up to "
-                        f"{d.all_pairs_max} vertices (default: %(default)s)")
-    u.add_argument("--landmarks", type=int, default=d.landmarks, metavar="K",
-                   help="landmark count for the landmark path (default: automatic)")
-    u.add_argument("--refine", choices=REFINE_MODES, default=d.refine,
-                   help="sd = flip-free symmetric Dirichlet polish at true scale with overlap checks; none = the "
-                        "paper's raw MDS map (default: %(default)s)")
-    u.add_argument("--mds-start", choices=MDS_START_MODES, default=d.mds_start,
-                   help="auto = with --refine sd, skip the fill, geodesics and MDS when the LSCM layout is already "
-                        "bijective and within 0.1%% of an isometry (developable parts), or, from 30k vertices, when "
-                        "the MDS layout of a 1/8 coarse mesh folds (curved scans): the same map, faster; "
-                        "stress_rel_rms is then null; always = compute them as a start candidate anyway "
-                        "(default: %(default)s)")
-    u.add_argument("--seams", choices=SEAM_MODES, default=d.seams,
-                   help="cut holes open to the border along the shortest surface paths: auto = when the map "
-                        "without seams is more than 1%% from an isometry, keep the cut one if it lowers the mean "
-                        "isometric distortion by 2%% or more (reported, with a warning); holes = always; none = "
-                        "never, one uncut piece (default: %(default)s)")
-    u.add_argument("--refine-multilevel", type=int, default=d.refine_multilevel, metavar="N",
-                   help="meshes of at least N vertices are polished coarse-to-fine (a ~1/8-size coarse mesh "
-                        "first; docs/refine.md); 0 = never (default: %(default)s)")
-    u.add_argument("--stress", choices=STRESS_MODES, default=d.stress,
-                   help="smacof = stress majorization of Eq. 1 on the geodesic distances after MDS, before "
-                        "--refine (see BENCHMARKS.md §7); none = the MDS layout as is (default: %(default)s)")
-    u.add_argument("--seed", type=int, default=d.seed, help="random seed (default: %(default)s)")
+    for opt in cli_options():
+        _add_option(u, opt)
     u.add_argument("--report", metavar="R.json", help="write a JSON report (parameters, timings, metrics)")
     u.add_argument("--preview", metavar="P.png", help="write a PNG: UV layout coloured by distortion + 3D view")
-    _add_heat_options(u)
+    u.add_argument("--quiet", action="store_true", help="no progress output")
 
     g = sub.add_parser("geodesics", help="heat-method geodesic distances from source vertices",
                        description="Write an (n, k) .npy array: column j = distances from source j.")
     g.add_argument("input", help="mesh file")
-    g.add_argument("--source", type=int, nargs="+", required=True, metavar="I", help="source vertex indices")
+    g.add_argument("--source", nargs="+", required=True, metavar="I", help="source vertex indices")
     g.add_argument("-o", "--output", required=True, help="output .npy")
-    _add_heat_options(g)
+    for opt in cli_options():
+        if opt.name in HEAT_OPTIONS:
+            _add_option(g, opt)
+    g.add_argument("--quiet", action="store_true", help="no progress output")
 
     e = sub.add_parser("evaluate", help="print distortion/bijectivity metrics of any OBJ with UVs",
                        description="Judge any tool's map (OBJ with vt) with heatparam's yardstick.")
@@ -138,17 +113,14 @@ def _check_output(path: str, inputs: tuple[str, ...], suffix: str) -> Path:
 
 
 def cmd_unwrap(args: argparse.Namespace) -> int:
-    from heatparam import io
+    from heatparam.formats import load_mesh
     from heatparam.pipeline import parameterize
 
     out = _check_output(args.output, (args.input,), ".obj")
     rep = _check_output(args.report, (args.input, args.output), ".json") if args.report else None
     prev = _check_output(args.preview, (args.input, args.output), ".png") if args.preview else None
-    V, F = io.load_mesh(args.input)
-    opts = Options(fill=args.fill, geodesics=args.geodesics, landmarks=args.landmarks, time_step=args.time_step,
-                   t_coef=args.t_coef, solver=args.solver, seed=args.seed, refine=args.refine,
-                   refine_multilevel=args.refine_multilevel, mds_start=args.mds_start, seams=args.seams,
-                   stress=args.stress, fill_depth=args.fill_depth, progress=not args.quiet)
+    V, F = load_mesh(args.input)
+    opts = make_options(progress=not args.quiet, **{o.name: getattr(args, o.name) for o in cli_options()})
     result = parameterize(V, F, opts)
     result.report["input"] = str(args.input)
     _write_results(V, F, result, out, rep, prev, quiet=args.quiet)
@@ -157,7 +129,7 @@ def cmd_unwrap(args: argparse.Namespace) -> int:
 
 def _write_results(V, F, result, out: Path, rep: Path | None, prev: Path | None, quiet: bool) -> None:
     """Preview (optional), OBJ and report (optional) of a pipeline ``Result``, each written atomically."""
-    from heatparam import io
+    from heatparam.formats import save_json, save_uv_obj
 
     uv, report = result
     if prev is not None:
@@ -165,10 +137,9 @@ def _write_results(V, F, result, out: Path, rep: Path | None, prev: Path | None,
 
         render.save_preview(prev, V[result.uv_vertex], result.Fuv, uv, title=Path(report.get("input", out.stem)).name,
                             fill_surface=result.fill_surface)
-    io.save_uv_obj(out, V, F, uv, header=f"heatparam {__version__}: vt = true-scale UV (model units)",
-                   Fuv=result.Fuv)
+    save_uv_obj(out, V, F, uv, header=f"heatparam {__version__}: vt = true-scale UV (model units)", Fuv=result.Fuv)
     if rep is not None:
-        io.save_json(rep, report)
+        save_json(rep, report)
     if not quiet:
         m = report["metrics"]
         print(
@@ -180,71 +151,63 @@ def _write_results(V, F, result, out: Path, rep: Path | None, prev: Path | None,
 
 
 def cmd_geodesics(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    from heatparam import heat, io
-    from heatparam.mesh import validate_mesh
-    from heatparam.operators import build_operators
+    from heatparam.formats import load_mesh, save_npy
+    from heatparam.heat import geodesic_distances
 
     out = _check_output(args.output, (args.input,), ".npy")
-    V, F = io.load_mesh(args.input)
-    info = validate_mesh(V, F, flatten=False)  # distances need no boundary: closed scans are fine here
-    src = np.asarray(args.source, dtype=np.int64)
-    bad = src[(src < 0) | (src >= len(V))]
-    if len(bad):
-        raise HeatparamError(f"source vertex {int(bad[0])} is out of range (the mesh has {len(V)} vertices)")
-    if not info.referenced[src].all():
-        raise HeatparamError(f"source vertex {int(src[~info.referenced[src]][0])} is not used by any face")
-    # operators on the referenced vertices; unreferenced ones are unreachable (inf)
-    keep = np.flatnonzero(info.referenced)
-    remap = np.full(len(V), -1, dtype=np.int64)
-    remap[keep] = np.arange(len(keep))
-    op = build_operators(V[keep], remap[F])
-    t = heat.time_step(op, args.time_step, args.t_coef)
-    warning = heat.underflow_warning(op, t) if args.time_step != "default" else None
+    sources = []
+    for s in args.source:
+        try:
+            sources.append(int(s))
+        except ValueError:
+            raise HeatparamError(f"source {s!r} is not a vertex index (an integer)") from None
+    V, F = load_mesh(args.input)
+    if any(not 0 <= s < len(V) for s in sources):
+        bad = next(s for s in sources if not 0 <= s < len(V))
+        raise HeatparamError(f"source vertex {bad} is out of range (the mesh has {len(V)} vertices)")
+    D, warning = geodesic_distances(V, F, sources, args.time_step, args.t_coef, args.solver)
     if warning:
-        print(f"heatparam: warning: {warning}", file=sys.stderr)
-    solver = heat.HeatGeodesics(op, t, backend=args.solver)
-    D = np.full((len(V), len(src)), np.inf)
-    D[keep] = solver.distances(remap[src])
-    io.save_npy(out, D)
+        print(f"heatparam: warning: {to_cli_terms(warning)}", file=sys.stderr)
+    save_npy(out, D)
     if not args.quiet:
-        extra = f" ({info.n_unreferenced} unreferenced vertices: inf)" if info.n_unreferenced else ""
-        print(f"wrote {out}: distances from {len(src)} sources to {len(V)} vertices{extra}", file=sys.stderr)
+        unreached = int((~(D < float("inf"))).all(axis=1).sum())
+        extra = f" ({unreached} unreferenced vertices: inf)" if unreached else ""
+        print(f"wrote {out}: distances from {len(sources)} sources to {len(V)} vertices{extra}", file=sys.stderr)
     return 0
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    from heatparam import io, metrics
+    from heatparam import metrics
+    from heatparam.formats import load_uv_obj, save_json
     from heatparam.mesh import validate_mesh
 
     rep = _check_output(args.report, (args.input,), ".json") if args.report else None
-    V, F, UV, FUV = io.load_uv_obj(args.input)
+    V, F, UV, FUV = load_uv_obj(args.input)
     validate_mesh(V, F)
     if FUV.max() >= len(UV) or FUV.min() < 0:
         raise HeatparamError(f"{args.input}: texture coordinate index out of range")
     summary = metrics.summary(V, F, UV, FUV)
     if rep is not None:
-        io.save_json(rep, {"input": str(args.input), "metrics": summary})
+        save_json(rep, {"input": str(args.input), "metrics": summary})
     if not args.quiet:
         print(json.dumps(summary, indent=2))
     return 0
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    from heatparam import shapes
+    from heatparam import datasets
     from heatparam.pipeline import parameterize
 
     outdir = Path(args.output_dir)
     if outdir.exists() and not outdir.is_dir():
         raise HeatparamError(f"{outdir} exists and is not a folder")
     outdir.mkdir(parents=True, exist_ok=True)
-    shape = shapes.DEMO_SHAPE()
+    shape = datasets.DEMO_SHAPE()
     result = parameterize(shape.V, shape.F, progress=not args.quiet)
     uv, report = result
     report["input"] = f"generated:{shape.name}"
     if shape.uv_true is not None:
-        report["metrics"]["layout_error_rel"] = shapes.layout_error(uv, shape.uv_true[result.uv_vertex])
+        report["metrics"]["layout_error_rel"] = datasets.layout_error(uv, shape.uv_true[result.uv_vertex])
     _write_results(shape.V, shape.F, result, outdir / "demo.obj", outdir / "demo-report.json",
                    outdir / "demo-preview.png", quiet=args.quiet)
     if not args.quiet:
@@ -261,7 +224,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return COMMANDS[args.command](args)
     except HeatparamError as exc:
-        print(f"heatparam: error: {exc}", file=sys.stderr)
+        print(f"heatparam: error: {to_cli_terms(str(exc))}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("heatparam: interrupted (no output written)", file=sys.stderr)

@@ -33,8 +33,10 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, Delaunay, QhullError
 
 from heatparam.errors import HeatparamError
-from heatparam.mds import conformal_layout
-from heatparam.mesh import MeshInfo, face_areas
+from heatparam.layout.conformal import conformal_layout
+from heatparam.mesh.planar import signed_areas, triangulate
+from heatparam.mesh.topology import boundary_loops, face_areas, loops_outer_first
+from heatparam.mesh.validate import MeshInfo
 
 __all__ = [
     "FILL_METHODS",
@@ -102,18 +104,13 @@ def provisional_layout(V: np.ndarray, F: np.ndarray, info: MeshInfo | None = Non
     """
     if conformal is not None:
         return conformal()
-    loop = info.boundary_loops[0] if info is not None else np.asarray(igl.boundary_loop(F), dtype=np.int64)
+    loop = info.boundary_loops[0] if info is not None else loops_outer_first(V, F)[0]
     return conformal_layout(V, F, loop)
-
-
-def _signed_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
-    e1, e2 = uv[F[:, 1]] - uv[F[:, 0]], uv[F[:, 2]] - uv[F[:, 0]]
-    return 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
 
 
 def concavity(uv: np.ndarray, F: np.ndarray) -> float:
     """Convex-hull area / area of the layout ``uv`` (n,2) of (·, F): 1 for a convex disk without holes."""
-    area = float(np.abs(_signed_areas(uv, F)).sum())
+    area = float(np.abs(signed_areas(uv, F)).sum())
     try:
         hull = ConvexHull(uv[np.unique(F)])
     except QhullError:
@@ -188,11 +185,11 @@ def poisson_reconstruct(V: np.ndarray, F: np.ndarray, depth: int, seed: int = 0)
                                          psr_outer_boundary_type="Neumann")
     except (RuntimeError, ValueError, MemoryError) as exc:
         raise HeatparamError(f"the Poisson reconstruction (depth {depth}) failed: {str(exc).splitlines()[0]}"
-                             " — try another --fill-depth or --fill none") from None
+                             " — try another fill_depth or fill='none'") from None
     Vp, Fp = np.asarray(Vp, dtype=np.float64), np.asarray(Fp, dtype=np.int64)
     if len(Fp) == 0:
         raise HeatparamError(f"the Poisson reconstruction (depth {depth}) produced no surface — try another "
-                             "--fill-depth or --fill none")
+                             "fill_depth or fill='none'")
     # Drop unreferenced vertices.
     used = np.unique(Fp)
     remap = np.full(len(Vp), -1, dtype=np.int64)
@@ -338,7 +335,7 @@ def poisson_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo, seed: int = 0, de
     thickness = np.linalg.svd(V - c, compute_uv=False)[-1] / np.sqrt(len(V))  # RMS distance to best-fit plane
     if thickness <= PLANAR_TOL * info.diameter:
         raise HeatparamError("the mesh is planar: the Poisson surface of a flat sheet is degenerate — "
-                             "use --fill biharmonic (or auto)")
+                             "use fill='biharmonic' (or 'auto')")
     t0 = time.perf_counter()
     d = int(depth) if depth else auto_depth(info)
     Vp, Fp = poisson_reconstruct(V, F, d, seed)
@@ -347,7 +344,7 @@ def poisson_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo, seed: int = 0, de
     Vs, Fs, facts = trim_to_hull(Vp, Fp, V, F, uv, near)
     if len(Fs) < 10:
         raise HeatparamError(f"the Poisson fill (depth {d}) left no usable surface after trimming — "
-                             "try --fill none or another --fill-depth")
+                             "try fill='none' or another fill_depth")
     if remesh:
         import gpytoolbox as gpy
 
@@ -367,7 +364,7 @@ def poisson_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo, seed: int = 0, de
 
 def _result(V, F, info, Vs, Fs, face, bary, dist, t0, extra) -> FillResult:
     warnings: list[str] = []
-    loops = igl.boundary_loop_all(Fs)
+    loops = boundary_loops(Fs)
     diam = info.diameter
     ext = float(np.linalg.norm(Vs.max(0) - Vs.min(0)))
     report = {
@@ -404,12 +401,12 @@ def _subdivide(P: np.ndarray, Q: np.ndarray, h: float) -> np.ndarray:
 def _triangulate_region(poly: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
     """Constrained Delaunay triangulation of a simple closed polygon (k,2) without splitting its edges,
     interior refined to edge length ~h. Returns (P (k+s,2) — the polygon's points first — and T (t,3))."""
-    import gpytoolbox as gpy
-
     k = len(poly)
     E = np.column_stack([np.arange(k), (np.arange(k) + 1) % k])
-    P2, T = gpy.triangulate_polygon(poly, E, a=0.5 * h * h, q=np.deg2rad(25.0), steiner=False)
-    P2, T = np.asarray(P2, dtype=np.float64), np.asarray(T, dtype=np.int64)
+    try:
+        P2, T = triangulate(poly, E, max_area=0.5 * h * h, min_angle=np.deg2rad(25.0))
+    except ValueError as exc:
+        raise HeatparamError(f"triangulating a gap of the fill failed ({exc})") from exc
     if len(P2) < k or not np.allclose(P2[:k], poly):
         # Map the input points onto their output rows.
         d, j = _nearest(poly, P2)
@@ -526,8 +523,7 @@ def _plane_frame(ids: np.ndarray, poly: np.ndarray, V: np.ndarray) -> np.ndarray
 def _orient_gap(T: np.ndarray, P2: np.ndarray, ids: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Orient the gap triangles T (t,3) (indices into the polygon-first points P2) opposite to M along their
     shared border edge ids[0] -> ids[1], so M* is consistently oriented."""
-    e1, e2 = P2[T[:, 1]] - P2[T[:, 0]], P2[T[:, 2]] - P2[T[:, 0]]
-    neg = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] < 0
+    neg = signed_areas(P2, T) < 0
     T = T.copy()
     T[neg] = T[neg][:, ::-1]  # all counter-clockwise in their frame
     a, b = int(ids[0]), int(ids[1])

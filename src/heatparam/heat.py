@@ -15,11 +15,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from heatparam.memory import require
-from heatparam.mesh import edge_graph
+from heatparam.mesh.topology import edge_graph
 from heatparam.operators import Operators
+from heatparam.options import TIME_STEPS
 from heatparam.solvers import Factor, large_system_backend
 
-TIME_STEPS = ("default", "paper")
 
 #: Bytes of scratch per source column per vertex in :meth:`HeatGeodesics.distances` (heat solution, gradient
 #: and unit field on ~2n faces × 2 components, right-hand side, distance): ~12 float64 per vertex.
@@ -102,7 +102,7 @@ def underflow_warning(op: Operators, t: float) -> str | None:
     span = DECAY_RANGE * np.sqrt(t_min / t)  # the diameter bound in units of √t
     return (f"time step {t:.3g} is too small for this surface (it spans {span:.0f} √t, "
             f"the heat kernel underflows beyond ~{DECAY_RANGE:.0f} √t): far distances will be wrong; use "
-            f"--time-step default or at least {t_min:.3g}")
+            f"time_step='default' or at least {t_min:.3g}")
 
 
 class HeatGeodesics:
@@ -268,7 +268,7 @@ def all_pairs_bytes(n: int) -> float:
 def all_pairs(solver: HeatGeodesics, progress: Callable[[int], None] | None = None) -> np.ndarray:
     """The symmetrized all-pairs geodesic matrix G (n,n), Eq. 10 for every vertex, G = (G + Gᵀ)/2."""
     n = solver.n
-    require(all_pairs_bytes(n), f"all-pairs distance matrix {n} x {n}", "use --geodesics landmarks")
+    require(all_pairs_bytes(n), f"all-pairs distance matrix {n} x {n}", "use geodesics='landmarks'")
     D = solver.distances(np.arange(n), progress=progress)
     D += D.T  # in place and symmetric: numpy buffers the transposed operand when they overlap
     D *= 0.5
@@ -313,3 +313,52 @@ def farthest_point_landmarks(
         np.minimum(mind, D[:, done : done + b].min(axis=1), out=mind)
         done += b
     return chosen, D
+
+
+def geodesic_distances(V: np.ndarray, F: np.ndarray, sources, time_step_mode: str | float = "default",
+                       t_coef: float = 1.0, solver: str = "auto") -> tuple[np.ndarray, str | None]:
+    """One-shot heat-method geodesic distances (Eq. 4, 8-10) from source vertices, on any manifold mesh (closed
+    surfaces too): the operators, :func:`time_step` and :class:`HeatGeodesics` in one call.
+
+    Parameters
+    ----------
+    V : (n,3) float64. F : (m,3) int64. sources : (k,) int vertex ids (each referenced by a face).
+    time_step_mode, t_coef, solver : as ``Options.time_step``, ``Options.t_coef``, ``Options.solver``.
+
+    Returns
+    -------
+    D : (n,k) float64, column j the distances from ``sources[j]``; vertices no face uses are unreachable (inf).
+    warning : an explicit time step too small for the surface (:func:`underflow_warning`), or None.
+
+    Examples
+    --------
+    >>> from heatparam import datasets
+    >>> s = datasets.flat_square(h=0.1)
+    >>> D, _ = geodesic_distances(s.V, s.F, [0])
+    >>> D.shape[1]
+    1
+    """
+    from heatparam.errors import HeatparamError
+    from heatparam.mesh.topology import compact
+    from heatparam.mesh.validate import validate_mesh
+    from heatparam.operators import build_operators
+
+    info = validate_mesh(V, F, flatten=False)  # distances need no boundary: closed scans are fine here
+    src = np.asarray(sources)
+    if src.ndim != 1 or len(src) == 0 or not np.issubdtype(src.dtype, np.integer):
+        raise HeatparamError("sources must be a non-empty list of vertex indices")
+    bad = src[(src < 0) | (src >= len(V))]
+    if len(bad):
+        raise HeatparamError(f"source vertex {int(bad[0])} is out of range (the mesh has {len(V)} vertices)")
+    if not info.referenced[src].all():
+        raise HeatparamError(f"source vertex {int(src[~info.referenced[src]][0])} is not used by any face")
+    comp = compact(info.referenced)
+    op = build_operators(V[comp.keep], comp.faces(F))
+    t = time_step(op, time_step_mode, t_coef)
+    warning = underflow_warning(op, t) if time_step_mode != "default" else None
+    D = np.full((len(V), len(src)), np.inf)
+    D[comp.keep] = HeatGeodesics(op, t, backend=solver).distances(comp.remap[src])
+    if not np.isfinite(D[comp.keep]).all():
+        raise HeatparamError("the heat-method distances are not finite (the time step is far too large or too "
+                             "small for this surface) — use time_step='default'")
+    return D, warning

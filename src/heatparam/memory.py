@@ -22,7 +22,7 @@ def require(nbytes: float, what: str, hint: str) -> None:
     ----------
     nbytes : bytes the caller is about to allocate (all buffers of the stage together).
     what : what the allocation is, for the message (e.g. "all-pairs distance matrix 90000 x 90000").
-    hint : what the user can do instead (e.g. "use --geodesics landmarks").
+    hint : what the user can do instead (in API terms, e.g. "use geodesics='landmarks'"; the CLI shows flags).
     """
     avail = available_bytes()
     if nbytes > SAFETY_FRACTION * avail:

@@ -33,12 +33,11 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from heatparam.errors import MeshError
+from heatparam.mesh.topology import DEGENERATE_AREA_REL, boundary_edges
 
 __all__ = [
     "PerFaceDistortion",
     "boundary_crossings",
-    "boundary_edges",
-    "boundary_loops",
     "distortion",
     "face_jacobian_singular_values",
     "per_face_distortion",
@@ -47,7 +46,6 @@ __all__ = [
     "weld_uv",
 ]
 
-_DEGENERATE_REL = 1e-14  # |2 * area| <= this * (longest edge)^2  ->  degenerate 3D face
 _P = 0.95  # percentile reported as *_p95
 _CELL_MAX = 32  # a grid cell with more edges than this is refined (boundary_crossings)
 _MAX_DEPTH = 4  # refinement levels of the crossing grid
@@ -143,7 +141,7 @@ def face_jacobian_singular_values(
     L2 = x1 * x1 + y1 * y1 + z1 * z1
     dot = x1 * x2 + y1 * y2 + z1 * z2
     longest2 = np.maximum(np.maximum(L2, x2 * x2 + y2 * y2 + z2 * z2), np.einsum("ij,ij->i", e3, e3))
-    degen = nn <= _DEGENERATE_REL * longest2  # also catches longest2 == 0
+    degen = nn <= DEGENERATE_AREA_REL * longest2  # also catches longest2 == 0
 
     q0 = uv[Fuv[:, 0]]
     d1 = uv[Fuv[:, 1]] - q0
@@ -296,112 +294,6 @@ def distortion(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray | N
         degenerate_faces=int((~valid).sum()),
     )
     return out
-
-
-# ----------------------------------------------------------------------------------------------------------
-# boundaries
-# ----------------------------------------------------------------------------------------------------------
-def _half_edges(F: np.ndarray) -> np.ndarray:
-    return np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-
-
-def _boundary_half_edges(F: np.ndarray) -> np.ndarray:
-    """(b, 2) directed half-edges (as oriented in their face) of edges used by exactly one face."""
-    F = np.asarray(F, dtype=np.int64)
-    if F.size == 0:
-        return np.zeros((0, 2), np.int64)
-    he = _half_edges(F)
-    lo = he.min(axis=1)
-    hi = he.max(axis=1)
-    key = lo * (int(F.max()) + 1) + hi
-    order = np.argsort(key, kind="stable")
-    ks = key[order]
-    differs = ks[1:] != ks[:-1]
-    single = np.ones(len(ks), dtype=bool)
-    single[1:] &= differs
-    single[:-1] &= differs
-    return he[np.sort(order[single])]
-
-
-def boundary_edges(F: np.ndarray) -> np.ndarray:
-    """Edges used by exactly one face.
-
-    Parameters
-    ----------
-    F : (m, 3) int64
-
-    Returns
-    -------
-    (b, 2) int64
-        Vertex pairs, oriented as in their face.
-    """
-    return _boundary_half_edges(F)
-
-
-def _walk_loops(he: np.ndarray) -> list[np.ndarray]:
-    """Chain directed boundary half-edges into loops (open chains if the boundary is not a 1-manifold)."""
-    nb = len(he)
-    if nb == 0:
-        return []
-    src, dst = he[:, 0], he[:, 1]
-    order = np.argsort(src, kind="stable")
-    verts, first = np.unique(src[order], return_index=True)
-    last = np.append(first[1:], nb)
-    start_of = dict(zip(verts.tolist(), zip(first.tolist(), last.tolist(), strict=True), strict=True))
-    order_l = order.tolist()
-    src_l, dst_l = src.tolist(), dst.tolist()
-    used = [False] * nb
-    ptr = {v: s for v, (s, _) in start_of.items()}  # next unused slot per source vertex
-    loops = []
-    for e0 in order_l:
-        if used[e0]:
-            continue
-        used[e0] = True
-        v0 = src_l[e0]
-        loop = [v0]
-        cur = dst_l[e0]
-        while cur != v0:
-            slot = start_of.get(cur)
-            if slot is None:
-                break
-            k, end = ptr[cur], slot[1]
-            while k < end and used[order_l[k]]:
-                k += 1
-            ptr[cur] = k
-            if k == end:
-                break
-            e = order_l[k]
-            used[e] = True
-            loop.append(cur)
-            cur = dst_l[e]
-        else:
-            loops.append(np.asarray(loop, dtype=np.int64))
-            continue
-        loop.append(cur)  # open chain: keep its last vertex
-        loops.append(np.asarray(loop, dtype=np.int64))
-    return loops
-
-
-def boundary_loops(F: np.ndarray) -> list[np.ndarray]:
-    """Ordered boundary loops of a triangle mesh.
-
-    Chains the boundary edges (edges in exactly one face) in face orientation. Where the boundary is not
-    a 1-manifold (a vertex with several boundary edges, as at a bow-tie) every edge still lands in exactly
-    one loop; inconsistently oriented faces can yield open chains. ``igl.boundary_loop_all`` is not used:
-    it mishandles bow-ties and builds full face adjacency (tens of seconds on a high-valence fan).
-    For the UV boundary of a map with seams pass ``Fuv`` (after :func:`weld_uv` if corners are
-    duplicated).
-
-    Parameters
-    ----------
-    F : (m, 3) int64
-
-    Returns
-    -------
-    list of (k_i,) int64
-        Vertex indices of each loop, in order (the last vertex connects back to the first).
-    """
-    return _walk_loops(_boundary_half_edges(F))
 
 
 def weld_uv(F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -602,7 +494,7 @@ def boundary_crossings(uv: np.ndarray, F: np.ndarray) -> int:
     uv = _points(uv, 2, "uv")
     F = _faces(F, len(uv), "F")
     _check_finite(uv, F, "uv")
-    return _segment_crossings(uv, _boundary_half_edges(F))
+    return _segment_crossings(uv, boundary_edges(F))
 
 
 # ----------------------------------------------------------------------------------------------------------

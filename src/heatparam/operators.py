@@ -18,7 +18,8 @@ import igl
 import numpy as np
 import scipy.sparse as sp
 
-MASS_KINDS = ("lumped", "consistent")
+from heatparam.options import MASS_KINDS
+
 
 
 def edge_lengths(V: np.ndarray, F: np.ndarray) -> np.ndarray:

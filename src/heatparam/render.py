@@ -77,7 +77,7 @@ def save_preview(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.n
     a checkerboard through the map (paper Figures 10-12). With ``fill_surface`` (a pipeline ``FillSurface``),
     two more panels show M* with M over it (Figure 7) and M*'s MDS layout with M's trimmed layout (Figure 9)."""
     from heatparam import metrics
-    from heatparam.io import atomic_write
+    from heatparam.formats.files import atomic_write
 
     pf = metrics.per_face_distortion(V, F, uv)
     plt, fig, axes = _figure(2 if fill_surface is None else 4)
@@ -153,7 +153,7 @@ def draw_surface_3d(ax, V: np.ndarray, F: np.ndarray, color=(0.75, 0.75, 0.8), f
 def save_fill_figure(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, Vs: np.ndarray, Fs: np.ndarray,
                      title: str = "") -> None:
     """Paper Figure 7: (a) the mesh M, (b) the fill surface M* (grey) with M drawn over it (blue), one view."""
-    from heatparam.io import atomic_write
+    from heatparam.formats.files import atomic_write
 
     plt, fig, axes = _figure(2)
     draw_surface_3d(axes[0], V, F, color=(0.35, 0.5, 0.85), frame=_principal_frame(V), title=f"{title} — (a) mesh M")
@@ -171,7 +171,7 @@ def save_fill_comparison(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, 
     import matplotlib
 
     from heatparam import metrics
-    from heatparam.io import atomic_write
+    from heatparam.formats.files import atomic_write
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

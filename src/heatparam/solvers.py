@@ -21,8 +21,6 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-BACKENDS = ("auto", "cholespy", "scipy", "pardiso")
-
 
 def available_backends() -> list[str]:
     """Backends importable here, in preference order."""

@@ -1,18 +1,13 @@
-"""File formats (the only module that knows them): load meshes, write UV OBJs and JSON reports atomically.
-
-Meshes load through meshio (OBJ, OFF, PLY, STL, with vertex order kept exactly: no merging, no reordering)
-and trimesh for glTF/GLB scenes. Quads and polygons are fan-triangulated. Plain triangle OBJs (``v x y z`` and
-three-corner ``f`` lines) take a vectorized fast path that reads exactly what meshio reads, in less time
-(BENCHMARKS.md §4).
+"""Reading meshes: OBJ, OFF, PLY, STL (meshio, vertex order kept exactly: no merging, no reordering) and glTF/GLB
+scenes (trimesh). Quads and polygons are fan-triangulated. Plain triangle OBJs (``v x y z`` and three-corner ``f``
+lines) take a vectorized fast path that reads exactly what meshio reads, in less time (BENCHMARKS.md §4).
 """
 
 from __future__ import annotations
 
 import contextlib
 import io
-import json
 import os
-import tempfile
 import warnings
 from pathlib import Path
 
@@ -20,8 +15,8 @@ import numpy as np
 
 from heatparam.errors import HeatparamError
 
-MESH_SUFFIXES = (".obj", ".off", ".ply", ".stl", ".glb", ".gltf")
 
+MESH_SUFFIXES = (".obj", ".off", ".ply", ".stl", ".glb", ".gltf")
 
 def _triangulate(cells: list[tuple[str, np.ndarray]]) -> np.ndarray:
     """Fan-triangulate polygon cells [(type, (c,k) indices)] into (m,3) int64 triangles, in order."""
@@ -35,7 +30,6 @@ def _triangulate(cells: list[tuple[str, np.ndarray]]) -> np.ndarray:
     if not tris:
         return np.zeros((0, 3), dtype=np.int64)
     return np.concatenate(tris).astype(np.int64)
-
 
 def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     """Read a triangle mesh: V (n,3) float64 in file order, F (m,3) int64.
@@ -73,14 +67,11 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         raise HeatparamError(f"cannot read {p}: the file holds no triangles")
     return V, F
 
-
 class _NotSimple(Exception):
     """The OBJ is not a plain triangle mesh: let meshio read it."""
 
-
 #: OBJ statements the fast path skips, as meshio does (normals and texture coordinates are not used here).
 _OBJ_SKIP = ("vt", "vn", "s", "g", "o", "usemtl", "mtllib")
-
 
 def _load_obj_fast(p: Path) -> tuple[np.ndarray, np.ndarray]:
     """Plain triangle OBJ: every ``v`` line has 3 coordinates, every ``f`` line 3 positive vertex indices.
@@ -134,7 +125,6 @@ def _load_obj_fast(p: Path) -> tuple[np.ndarray, np.ndarray]:
         raise _NotSimple  # relative (negative) or zero indices: meshio's own handling applies
     return V, F - 1
 
-
 def _float_table(lines: list[str]) -> np.ndarray:
     """Lines ``key x y ...`` with the same number of entries → (len(lines), entries) float64, else _NotSimple."""
     tok = " ".join(lines).split()
@@ -148,7 +138,6 @@ def _float_table(lines: list[str]) -> np.ndarray:
         return np.array(list(map(float, tok[:, 1:].ravel())), dtype=np.float64).reshape(len(lines), width - 1)
     except ValueError:
         raise _NotSimple from None
-
 
 def _load_meshio(p: Path) -> tuple[np.ndarray, np.ndarray]:
     import meshio
@@ -170,7 +159,6 @@ def _load_meshio(p: Path) -> tuple[np.ndarray, np.ndarray]:
     F = _triangulate([(c.type, c.data) for c in m.cells])
     return V, F
 
-
 def _load_trimesh(p: Path) -> tuple[np.ndarray, np.ndarray]:
     import trimesh
 
@@ -188,7 +176,6 @@ def _load_trimesh(p: Path) -> tuple[np.ndarray, np.ndarray]:
         off += len(g.vertices)
     return np.concatenate(Vs), np.concatenate(Fs)
 
-
 def _merge_stl(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """STL stores every triangle with its own corners: merge identical positions (first appearance order)."""
     _, first, inverse = np.unique(V, axis=0, return_index=True, return_inverse=True)
@@ -196,104 +183,3 @@ def _merge_stl(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
     return V[np.sort(first)], rank[inverse.ravel()][F]
-
-
-@contextlib.contextmanager
-def atomic_write(path: str | os.PathLike, mode: str = "w"):
-    """Open a temporary file beside ``path``; on success rename it over ``path``, on failure delete it.
-
-    A failed run therefore never leaves a half-written or clobbered output.
-    """
-    p = Path(path)
-    if not p.parent.exists():
-        raise HeatparamError(f"cannot write {p}: folder {p.parent} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
-    try:
-        with os.fdopen(fd, mode) as fh:
-            yield fh
-        os.replace(tmp, p)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-
-
-def save_uv_obj(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.ndarray, header: str = "",
-                Fuv: np.ndarray | None = None) -> None:
-    """Write an OBJ: ``v`` = V in input order, ``vt`` = uv, faces ``f v/vt``: vt index = v index (one vt per
-    vertex) or, with ``Fuv`` (m,3), the rows of uv at each face's corners (a map with seams)."""
-    Fuv = F if Fuv is None else Fuv
-    with atomic_write(path) as fh:
-        if header:
-            fh.write("".join(f"# {line}\n" for line in header.splitlines()))
-        # repr() of a float is the shortest text that reads back to the same float: exact round trip
-        fh.write(("v %r %r %r\n" * len(V)) % tuple(np.asarray(V, dtype=np.float64).ravel().tolist()))
-        fh.write(("vt %r %r\n" * len(uv)) % tuple(np.asarray(uv, dtype=np.float64).ravel().tolist()))
-        f1 = np.stack([np.asarray(F, dtype=np.int64), np.asarray(Fuv, dtype=np.int64)], axis=2) + 1
-        fh.write(("f %d/%d %d/%d %d/%d\n" * len(F)) % tuple(f1.ravel().tolist()))
-
-
-def load_uv_obj(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Read an OBJ with texture coordinates: V (n,3), F (m,3), UV (t,2), FUV (m,3) (per-corner UV indices).
-
-    Polygons are fan-triangulated; faces without ``vt`` raise a one-line HeatparamError.
-    """
-    p = Path(path)
-    if not p.is_file():
-        raise HeatparamError(f"cannot read {p}: no such file")
-    V, UV, F, FT = [], [], [], []
-    try:
-        with open(p, encoding="utf-8", errors="replace") as fh:
-            for line in fh:
-                s = line.split()
-                if not s:
-                    continue
-                if s[0] == "v":
-                    V.append([float(x) for x in s[1:4]])
-                elif s[0] == "vt":
-                    UV.append([float(x) for x in s[1:3]])
-                elif s[0] == "f":
-                    corners = [c.split("/") for c in s[1:]]
-                    if any(len(c) < 2 or not c[1] for c in corners):
-                        raise HeatparamError(f"{p}: a face has no texture coordinates (need 'f v/vt ...')")
-                    vi = [_obj_index(c[0], len(V)) for c in corners]
-                    ti = [_obj_index(c[1], len(UV)) for c in corners]
-                    for j in range(1, len(vi) - 1):
-                        F.append([vi[0], vi[j], vi[j + 1]])
-                        FT.append([ti[0], ti[j], ti[j + 1]])
-    except HeatparamError:
-        raise
-    except (ValueError, IndexError) as exc:
-        raise HeatparamError(f"cannot read {p}: malformed OBJ line ({exc})") from None
-    if not UV:
-        raise HeatparamError(f"{p} has no texture coordinates (vt lines) to evaluate")
-    if not F:
-        raise HeatparamError(f"cannot read {p}: the file holds no faces")
-    return (np.asarray(V, dtype=np.float64), np.asarray(F, dtype=np.int64),
-            np.asarray(UV, dtype=np.float64), np.asarray(FT, dtype=np.int64))
-
-
-def _obj_index(tok: str, count: int) -> int:
-    i = int(tok)
-    return i - 1 if i > 0 else count + i
-
-
-def save_json(path: str | os.PathLike, data: dict) -> None:
-    """Write ``data`` as indented JSON, atomically."""
-    with atomic_write(path) as fh:
-        json.dump(data, fh, indent=2, default=_json_default)
-        fh.write("\n")
-
-
-def _json_default(o):
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(f"not JSON serializable: {type(o).__name__}")
-
-
-def save_npy(path: str | os.PathLike, array: np.ndarray) -> None:
-    """Write a .npy array atomically."""
-    with atomic_write(path, "wb") as fh:
-        np.save(fh, array)

@@ -5,7 +5,7 @@ finds its two largest eigenpairs through products with G², and Φ = [√λ1 V1,
 Landmark MDS (de Silva & Tenenbaum 2004) runs classical MDS on k landmarks and places every vertex by
 distance-based triangulation from its k landmark distances: O(n·k) memory and time.
 SMACOF (``smacof``) then minimizes the raw stress of Eq. 1 itself by the Guttman transform, all-pairs or over
-the n×k point-landmark pairs (``--stress smacof``).
+the n×k point-landmark pairs (``Options.stress``).
 """
 
 from __future__ import annotations
@@ -18,7 +18,6 @@ import scipy.sparse.linalg as spla
 
 from heatparam.errors import HeatparamError
 from heatparam.memory import require
-from heatparam.mesh import face_areas
 
 
 def classical_mds(D: np.ndarray, dim: int = 2, seed: int = 0, overwrite: bool = False) -> np.ndarray:
@@ -35,7 +34,7 @@ def classical_mds(D: np.ndarray, dim: int = 2, seed: int = 0, overwrite: bool = 
     """
     n = len(D)
     if not overwrite:
-        require(8.0 * n * n, f"squared distance matrix {n} x {n}", "use --geodesics landmarks")
+        require(8.0 * n * n, f"squared distance matrix {n} x {n}", "use geodesics='landmarks'")
         D = D.copy()
     np.square(D, out=D)
     G2 = D
@@ -50,7 +49,6 @@ def classical_mds(D: np.ndarray, dim: int = 2, seed: int = 0, overwrite: bool = 
     lam, vec = spla.eigsh(C, k=dim, which="LA", v0=v0)
     return _coordinates(lam, vec)
 
-
 def _coordinates(lam: np.ndarray, vec: np.ndarray) -> np.ndarray:
     order = np.argsort(lam)[::-1]
     lam, vec = lam[order], vec[:, order]
@@ -64,7 +62,6 @@ def _coordinates(lam: np.ndarray, vec: np.ndarray) -> np.ndarray:
     idx = np.argmax(np.abs(X), axis=0)
     X *= np.sign(X[idx, np.arange(X.shape[1])])
     return X - X.mean(axis=0)
-
 
 def landmark_mds(DL: np.ndarray, landmarks: np.ndarray | None = None, dim: int = 2,
                  Dkk: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -102,7 +99,6 @@ def landmark_mds(DL: np.ndarray, landmarks: np.ndarray | None = None, dim: int =
     sign = np.sign(X[np.argmax(np.abs(X), axis=0), np.arange(dim)])
     centre = X.mean(axis=0)
     return (X - centre) * sign, (XL - centre) * sign
-
 
 def smacof(X0: np.ndarray, D: np.ndarray, landmarks: np.ndarray | None = None, iters: int = 100,
            tol: float = 1e-5, weights: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
@@ -185,9 +181,7 @@ def smacof(X0: np.ndarray, D: np.ndarray, landmarks: np.ndarray | None = None, i
             "seconds": round(time.perf_counter() - t0, 4)}
     return X, info
 
-
 _CHUNK = 2**21  # entries of an (rows, k) or (rows, n) scratch block: bounded extra memory per step
-
 
 def _dist(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """|a_i − b_j| (len(A), len(B)) without a (·,·,dim) temporary."""
@@ -196,11 +190,9 @@ def _dist(A: np.ndarray, B: np.ndarray) -> np.ndarray:
         out += np.square(A[:, c, None] - B[None, :, c])
     return np.sqrt(out, out=out)
 
-
 def _ratio(W: np.ndarray | None, Dc: np.ndarray, dist: np.ndarray) -> np.ndarray:
     """r = w d / |z_i − z_j| (0 where the distance is 0 or d is not finite)."""
     return np.divide(Dc if W is None else W * Dc, dist, out=np.zeros_like(dist), where=dist > 0)
-
 
 class _AllPairs:
     name = "all-pairs"
@@ -253,7 +245,6 @@ class _AllPairs:
         else:
             Y = sla.cho_solve(self.factor, BZ)
         return Y - Y.mean(axis=0)
-
 
 class _Bipartite:
     name = "landmarks"
@@ -324,92 +315,3 @@ class _Bipartite:
             out[Pc] = (Y[Pc] + self.W[Pc] @ xL) * inv[s : s + self.step, None]
         out[self.isolated] = X[self.isolated]
         return out - out.mean(axis=0)
-
-
-def needs_mirror(uv: np.ndarray, F: np.ndarray) -> bool:
-    """Whether most of the layout's signed area is clockwise (MDS fixes coordinates only up to a reflection)."""
-    a = uv[F[:, 1]] - uv[F[:, 0]]
-    b = uv[F[:, 2]] - uv[F[:, 0]]
-    return bool((a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum() < 0)
-
-
-def orient_layout(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Mirror the layout if most of its signed area is clockwise, so the faces keep the mesh's orientation."""
-    if needs_mirror(uv, F):
-        uv = uv.copy()
-        uv[:, 1] *= -1
-    return uv
-
-
-def lscm(V: np.ndarray, F: np.ndarray, pinned: np.ndarray, pinned_uv: np.ndarray, backend: str = "auto") -> np.ndarray:
-    """Least-squares conformal map (Lévy et al. 2002) with ``pinned`` (k,) vertices at ``pinned_uv`` (k,2).
-
-    Minimizes E_C = ½ ∫ |J|² − ∫ det J = ½ xᵀ (K ⊕ K) x − A(x), K the cotangent Laplacian (∫|∇u|² = uᵀKu) and
-    A(x) = ½ Σ (u_i v_j − u_j v_i) over the boundary half-edges i → j (the layout's signed area, holes included),
-    so the Hessian is Q = (K ⊕ K) − 2M with M the symmetric form of A. Q restricted to the free unknowns is SPD once
-    two vertices are pinned; it is factorized by ``solvers.Factor`` (PARDISO for large systems when installed:
-    ``solvers.large_system_backend``). Returns uv (n,2); vertices no face uses stay at 0.
-    """
-    import igl
-    import scipy.sparse as sp
-
-    from heatparam.metrics import boundary_loops
-    from heatparam.solvers import Factor, large_system_backend
-
-    n = len(V)
-    K = (-igl.cotmatrix(V, F)).tocsc()
-    he = [(lp, np.roll(lp, -1)) for lp in boundary_loops(F)]  # half-edges i → j as oriented in their faces
-    i = np.concatenate([h[0] for h in he]) if he else np.zeros(0, np.int64)
-    j = np.concatenate([h[1] for h in he]) if he else np.zeros(0, np.int64)
-    # M: A(x) = xᵀ M x with x = (u, v); each half-edge adds u_i v_j / 2 − u_j v_i / 2, split symmetrically
-    r = np.concatenate([i, j + n, j, i + n])
-    c = np.concatenate([j + n, i, i + n, j])
-    w = np.repeat([0.25, 0.25, -0.25, -0.25], len(i))
-    M = sp.csc_matrix((w, (r, c)), shape=(2 * n, 2 * n))
-    Q = (sp.block_diag([K, K], format="csc") - 2.0 * M).tocsc()
-    used = np.zeros(n, dtype=bool)
-    used[F.ravel()] = True
-    fixed = np.concatenate([pinned, pinned + n])
-    free = np.setdiff1d(np.flatnonzero(np.concatenate([used, used])), fixed)
-    xp = np.concatenate([pinned_uv[:, 0], pinned_uv[:, 1]])
-    Qf = Q[free]
-    rhs = -(Qf[:, fixed] @ xp)
-    Qff = Qf[:, free]
-    x = np.zeros(2 * n)
-    x[fixed] = xp
-    try:
-        x[free] = Factor(Qff, large_system_backend(len(free), backend)).solve(rhs)
-    except (ValueError, RuntimeError) as exc:  # not positive definite: degenerate faces, several components
-        raise HeatparamError(f"the conformal (LSCM) layout failed ({exc}): is the mesh degenerate?") from exc
-    return np.column_stack([x[:n], x[n:]])
-
-
-def conformal_layout(V: np.ndarray, F: np.ndarray, outer: np.ndarray, backend: str = "auto") -> np.ndarray:
-    """A quick reference layout: free-boundary LSCM (two far vertices of the outer loop pinned), mirrored to keep
-    the mesh's orientation, scaled to the 3D area and centred. (n,2) float64.
-
-    Not MDS: the fill uses it to decide where M* extends, the refinement as a fallback start when the MDS layout
-    folds. LSCM is exact up to scale on developable surfaces. Large systems that PARDISO would factorize
-    (``solvers.large_system_backend``) go through :func:`lscm` (196k-vertex cylinder patch 1.7 s vs 10.0 s for
-    ``igl.lscm``, camelhead↑180k 2.9 s vs 6.2 s); smaller ones through ``igl.lscm`` (45k: 0.59 s vs 0.96 s). Same map.
-    """
-    import igl
-
-    from heatparam.solvers import large_system_backend
-
-    a = int(outer[0])
-    b = int(outer[np.argmax(np.linalg.norm(V[outer] - V[a], axis=1))])
-    pins, pin_uv = np.array([a, b], dtype=np.int64), np.array([[0.0, 0.0], [1.0, 0.0]])
-    if large_system_backend(2 * len(V), backend) == "pardiso":
-        uv = lscm(V, F, pins, pin_uv, backend="pardiso")
-    else:
-        uv, _ = igl.lscm(V, F, pins, pin_uv)
-    uv = np.asarray(uv, dtype=np.float64)
-    if not np.isfinite(uv).all():
-        raise HeatparamError("the conformal (LSCM) layout failed: is the mesh degenerate?")
-    e1, e2 = uv[F[:, 1]] - uv[F[:, 0]], uv[F[:, 2]] - uv[F[:, 0]]
-    signed = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum()
-    if signed < 0:
-        uv[:, 1] *= -1
-    uv *= np.sqrt(face_areas(V, F).sum() / max(abs(signed), 1e-300))
-    return uv - uv.mean(axis=0)

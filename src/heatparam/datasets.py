@@ -24,6 +24,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, Delaunay, QhullError
 
+from heatparam.mesh.planar import polygon_area, signed_areas
+
 __all__ = [
     "Shape",
     "SHAPES",
@@ -131,13 +133,8 @@ def _polygon(corners: np.ndarray, h: float) -> np.ndarray:
     return np.vstack([_segment(corners[i], corners[(i + 1) % len(corners)], h) for i in range(len(corners))])
 
 
-def _signed_area(loop: np.ndarray) -> float:
-    x, y = loop[:, 0], loop[:, 1]
-    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
-
-
 def _orient(loop: np.ndarray, ccw: bool) -> np.ndarray:
-    return loop if (_signed_area(loop) > 0) == ccw else loop[::-1].copy()
+    return loop if (polygon_area(loop) > 0) == ccw else loop[::-1].copy()
 
 
 def _stadium(c0: tuple[float, float], c1: tuple[float, float], r: float, h: float) -> np.ndarray:
@@ -237,8 +234,7 @@ def mesh_domain(
         if len(tri.coplanar):
             raise RuntimeError("Delaunay dropped coincident/coplanar input points")
         T = tri.simplices.astype(np.int64)
-        e1, e2 = pts[T[:, 1]] - pts[T[:, 0]], pts[T[:, 2]] - pts[T[:, 0]]
-        sa = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+        sa = signed_areas(pts, T)
         T[sa < 0] = T[sa < 0][:, [0, 2, 1]]
         keep = np.abs(sa) > 1e-10 * h * h
         T = T[keep]

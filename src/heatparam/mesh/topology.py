@@ -1,0 +1,161 @@
+"""Mesh topology: edges, the edge graph, boundary loops (one walker), vertex compaction, face areas.
+
+Plain functions over ``F (m,3) int64`` (and ``V (n,3) float64`` where lengths matter). Every module that needs a
+boundary loop, a unique edge list or the referenced vertices calls these.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+import scipy.sparse as sp
+
+#: A face is degenerate (zero area) when |2 · area| <= this × (its longest edge)²: scale-free, per face; the
+#: validation's count, the metrics' exclusion and the fill's triangle checks use the same test.
+DEGENERATE_AREA_REL = 1e-14
+
+
+def face_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Triangle areas, (m,) float64."""
+    return 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+
+
+def _half_edges(F: np.ndarray) -> np.ndarray:
+    return np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+
+def boundary_edges(F: np.ndarray) -> np.ndarray:
+    """Edges used by exactly one face.
+
+    Parameters
+    ----------
+    F : (m, 3) int64
+
+    Returns
+    -------
+    (b, 2) int64
+        Vertex pairs, oriented as in their face.
+    """
+    F = np.asarray(F, dtype=np.int64)
+    if F.size == 0:
+        return np.zeros((0, 2), np.int64)
+    he = _half_edges(F)
+    lo = he.min(axis=1)
+    hi = he.max(axis=1)
+    key = lo * (int(F.max()) + 1) + hi
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    differs = ks[1:] != ks[:-1]
+    single = np.ones(len(ks), dtype=bool)
+    single[1:] &= differs
+    single[:-1] &= differs
+    return he[np.sort(order[single])]
+
+def _walk_loops(he: np.ndarray) -> list[np.ndarray]:
+    """Chain directed boundary half-edges into loops (open chains if the boundary is not a 1-manifold)."""
+    nb = len(he)
+    if nb == 0:
+        return []
+    src, dst = he[:, 0], he[:, 1]
+    order = np.argsort(src, kind="stable")
+    verts, first = np.unique(src[order], return_index=True)
+    last = np.append(first[1:], nb)
+    start_of = dict(zip(verts.tolist(), zip(first.tolist(), last.tolist(), strict=True), strict=True))
+    order_l = order.tolist()
+    src_l, dst_l = src.tolist(), dst.tolist()
+    used = [False] * nb
+    ptr = {v: s for v, (s, _) in start_of.items()}  # next unused slot per source vertex
+    loops = []
+    for e0 in order_l:
+        if used[e0]:
+            continue
+        used[e0] = True
+        v0 = src_l[e0]
+        loop = [v0]
+        cur = dst_l[e0]
+        while cur != v0:
+            slot = start_of.get(cur)
+            if slot is None:
+                break
+            k, end = ptr[cur], slot[1]
+            while k < end and used[order_l[k]]:
+                k += 1
+            ptr[cur] = k
+            if k == end:
+                break
+            e = order_l[k]
+            used[e] = True
+            loop.append(cur)
+            cur = dst_l[e]
+        else:
+            loops.append(np.asarray(loop, dtype=np.int64))
+            continue
+        loop.append(cur)  # open chain: keep its last vertex
+        loops.append(np.asarray(loop, dtype=np.int64))
+    return loops
+
+def boundary_loops(F: np.ndarray) -> list[np.ndarray]:
+    """Ordered boundary loops of a triangle mesh.
+
+    Chains the boundary edges (edges in exactly one face) in face orientation. Where the boundary is not
+    a 1-manifold (a vertex with several boundary edges, as at a bow-tie) every edge still lands in exactly
+    one loop; inconsistently oriented faces can yield open chains. ``igl.boundary_loop_all`` is not used:
+    it mishandles bow-ties and builds full face adjacency (tens of seconds on a high-valence fan).
+    For the UV boundary of a map with seams pass ``Fuv`` (after :func:`weld_uv` if corners are
+    duplicated).
+
+    Parameters
+    ----------
+    F : (m, 3) int64
+
+    Returns
+    -------
+    list of (k_i,) int64
+        Vertex indices of each loop, in order (the last vertex connects back to the first).
+    """
+    return _walk_loops(boundary_edges(F))
+
+
+def loops_outer_first(V: np.ndarray, F: np.ndarray) -> list[np.ndarray]:
+    """Boundary loops (:func:`boundary_loops`) sorted by 3D length, the longest (the outer border) first."""
+    loops = boundary_loops(F)
+    lengths = [loop_length(V, lp) for lp in loops]
+    order = np.argsort(lengths)[::-1]
+    return [loops[i] for i in order]
+
+
+def loop_length(V: np.ndarray, loop: np.ndarray) -> float:
+    """Length of a closed vertex loop in 3D."""
+    return float(np.linalg.norm(V[loop] - V[np.roll(loop, -1)], axis=1).sum())
+
+def unique_edges(F: np.ndarray) -> np.ndarray:
+    """(e,2) int64: every edge of the triangles once, as (smaller, larger) vertex index, sorted."""
+    return np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1), axis=0)
+
+# ----------------------------------------------------------------------------------------------------------
+# seams: cutting holes open to the border
+# ----------------------------------------------------------------------------------------------------------
+def edge_graph(F: np.ndarray, lengths: np.ndarray, n: int) -> sp.csr_matrix:
+    """The mesh's edge graph as a sparse (n, n) matrix of edge lengths, one direction per half-edge (use
+    ``directed=False`` in ``scipy.sparse.csgraph``). lengths : (m,3), column c the edge opposite corner c."""
+    E = np.concatenate([F[:, [1, 2]], F[:, [2, 0]], F[:, [0, 1]]])
+    return sp.csr_matrix((np.asarray(lengths).T.ravel(), (E[:, 0], E[:, 1])), shape=(n, n))
+
+
+class Compaction(NamedTuple):
+    """The referenced vertices of a mesh renumbered 0..k-1: ``keep`` (k,) input ids, ``remap`` (n,) new id or -1."""
+
+    keep: np.ndarray
+    remap: np.ndarray
+
+    def faces(self, F: np.ndarray) -> np.ndarray:
+        """F (m,3) in the compacted numbering."""
+        return self.remap[F]
+
+
+def compact(referenced: np.ndarray) -> Compaction:
+    """Renumber the vertices flagged in ``referenced`` (n,) bool to 0..k-1 (order kept)."""
+    keep = np.flatnonzero(referenced)
+    remap = np.full(len(referenced), -1, dtype=np.int64)
+    remap[keep] = np.arange(len(keep))
+    return Compaction(keep, remap)

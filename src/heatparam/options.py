@@ -1,0 +1,234 @@
+"""Every knob of the pipeline, declared once: the :data:`OPTIONS` table drives :class:`Options` (the API), its
+validation, the command line (``cli``) and the option table in the README (:func:`markdown_table`).
+
+No numerics are imported here: ``heatparam --help`` reads this table and nothing else.
+
+The policy thresholds the help texts quote (and the stages use) live here too, each with the measurement behind it.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import asdict, field, make_dataclass
+from typing import Any, NamedTuple
+
+from heatparam.errors import HeatparamError
+
+FILL_MODES = ("auto", "poisson", "biharmonic", "none")
+GEODESIC_MODES = ("auto", "all-pairs", "landmarks")
+STRESS_MODES = ("none", "smacof")
+MDS_START_MODES = ("auto", "always")
+SEAM_MODES = ("auto", "holes", "none")
+REFINE_MODES = ("none", "sd")
+MASS_KINDS = ("lumped", "consistent")
+TIME_STEPS = ("default", "paper")
+BACKENDS = ("auto", "cholespy", "scipy", "pardiso")
+
+#: With ``mds_start auto`` the heat geodesics and MDS are skipped when the LSCM start is bijective and its energy
+#: exceeds an isometry's (1) by at most this: no start can be better by more than this, and the polish converges
+#: from LSCM in 0-3 iterations. The MDS start's excess measured 2.7e-3 to 0.34 on every surface tried
+#: (docs/refine.md), so skipping changed no start.
+ISOMETRIC_START_EXCESS = 1e-3
+#: Meshes of at least this many vertices whose LSCM start is bijective but not isometric get a fold check: the
+#: fill, geodesics and MDS run first on a coarse mesh (1/8 of the vertices, triangulated in the LSCM layout); if
+#: more of its triangles are flipped than the refinement would repair, the full one is not computed. Folding is a
+#: property of the shape (camelhead: 53% of the coarse triangles flipped at 11k and 51% at 45k, 59% and 58% of the
+#: full ones); a coarse layout that does not fold proves nothing, and the full heat stage runs (beetle: 0 flips
+#: coarse, 1 full).
+FOLD_CHECK_MIN_VERTICES = 30_000
+#: ``seams auto`` tries the cut-open mesh only when the map's mean isometric distortion exceeds 1 by more than this
+#: (developable parts with holes are at 1.0000 already: nothing to gain) ...
+SEAM_TRY_EXCESS = 0.01
+#: ... and keeps it only when it lowers the mean isometric distortion by at least this fraction (measured,
+#: BENCHMARKS.md §6: halftunnel 1.536 → 1.18, beetle 1.080 → 1.02).
+SEAM_MIN_GAIN = 0.02
+#: Default of ``refine_multilevel``: meshes this large polish coarse-to-fine (docs/refine.md).
+MULTILEVEL_MIN_VERTICES = 30_000
+#: Largest vertex count for which ``geodesics auto`` takes the all-pairs path (n×n distances).
+ALL_PAIRS_MAX = 3000
+#: Largest ``t_coef``: t = c·h² with c beyond this diffuses across any mesh of up to ~10⁴ edges in one step (the
+#: distances then carry no information) and makes the heat system's matrix lose positive definiteness in floating
+#: point (``t_coef 1e300`` on halftunnel).
+T_COEF_MAX = 1e4
+
+
+class Option(NamedTuple):
+    """One knob: its name (the Options field), default, kind (``choice``, ``int``, ``float``, ``time``, ``bool``),
+    the allowed values or range, the help text (``{default}`` and the constants above may be quoted), whether the
+    command line offers it (``flag``: the CLI spelling, None = API only) and its metavar."""
+
+    name: str
+    default: Any
+    kind: str
+    help: str
+    choices: tuple = ()
+    low: float | None = None
+    high: float | None = None
+    flag: str | None = None
+    metavar: str | None = None
+
+
+OPTIONS: tuple[Option, ...] = (
+    Option("fill", "auto", "choice", "fill surface M* for holes and concave borders (§2.5): auto decides from the "
+           "mesh (holes, or a concave outline) and uses the biharmonic fill; poisson = the paper's screened Poisson "
+           "surface (Kazhdan's PoissonRecon through gpytoolbox), trimmed to M; biharmonic = M plus its holes and "
+           "border bays triangulated and lifted by a biharmonic extension (docs/fill.md); none",
+           FILL_MODES, flag="--fill"),
+    Option("fill_depth", 0, "int", "octree depth of the Poisson reconstruction (fill poisson); 0 = automatic from "
+           "the mesh's size and edge length, 6-9", low=0, high=12, flag="--fill-depth", metavar="D"),
+    Option("geodesics", "auto", "choice", "all-pairs = the paper (n×n matrix, classical MDS); landmarks = k "
+           "farthest-point sources, landmark MDS, O(n·k) memory; auto = all-pairs up to {ALL_PAIRS_MAX} vertices",
+           GEODESIC_MODES, flag="--geodesics"),
+    Option("landmarks", 0, "int", "landmark count for the landmark path (0 = automatic: min(n, 100); quality is "
+           "flat from k = 50 to 400 on developable patches, time grows linearly: BENCHMARKS.md)",
+           low=0, high=100_000, flag="--landmarks", metavar="K"),
+    Option("time_step", "default", "time", "heat time: default t = c·h² (h = mean edge, scale-invariant); paper = "
+           "Eq. 7 (longest edge; not scale-invariant); or a positive number", TIME_STEPS, flag="--time-step",
+           metavar="{default,paper}|T"),
+    Option("t_coef", 1.0, "float", "the c in t = c·h² for time_step default", low=0.0, high=T_COEF_MAX,
+           flag="--t-coef", metavar="C"),
+    Option("mass", "lumped", "choice", "mass matrix B: lumped (default: the consistent one of Eq. 6 gives heat "
+           "kernels that oscillate for short times) or consistent (Eq. 6)", MASS_KINDS),
+    Option("solver", "auto", "choice", "sparse factorization backend; auto = MKL PARDISO (pypardiso, x86-64) for "
+           "the refinement and for large heat systems, CHOLMOD (cholespy) otherwise, SciPy's SuperLU if neither is "
+           "installed (BENCHMARKS.md §2, §4)", BACKENDS, flag="--solver"),
+    Option("seed", 0, "int", "seeds every random choice (first landmark, Lanczos start vector): same input and seed, "
+           "same output", low=0, high=2**32 - 1, flag="--seed", metavar="N"),
+    Option("all_pairs_max", ALL_PAIRS_MAX, "int", "largest vertex count for which geodesics auto takes the "
+           "all-pairs path", low=3, high=100_000),
+    Option("stress_sources", 32, "int", "number of sources for the sampled Eq. 1 stress in the report",
+           low=1, high=10_000),
+    Option("refine", "sd", "choice", "sd = a bijective start (the lower-energy bijective one of the MDS and LSCM "
+           "layouts, an MDS layout with <= 0.1% of its triangles flipped repaired first; else Tutte) polished by "
+           "projected-Newton symmetric Dirichlet at true scale inside a re-triangulated scaffold, so no triangle "
+           "flips and no boundary crosses another (docs/refine.md); none = the paper's raw MDS map",
+           REFINE_MODES, flag="--refine"),
+    Option("mds_start", "auto", "choice", "with refine sd: auto skips the fill, the heat geodesics and MDS (a) when "
+           "the LSCM layout is already bijective and within {ISOMETRIC_START_EXCESS:.1%} of an isometry in energy "
+           "(developable parts), (b) on meshes of >= {FOLD_CHECK_MIN_VERTICES} vertices, when the MDS layout of a "
+           "1/8 coarse mesh folds beyond repair (curved scans): the same map, faster, and the report's "
+           "stress_rel_rms is then null; never when fill, geodesics, landmarks or stress is set explicitly. "
+           "always = compute them as a start candidate anyway", MDS_START_MODES, flag="--mds-start"),
+    Option("seams", "auto", "choice", "cut holes open to the border along the shortest surface paths: auto = when "
+           "the map without seams is more than {SEAM_TRY_EXCESS:.0%} from an isometry, keep the cut one if it is "
+           "bijective and lowers the mean isometric distortion by {SEAM_MIN_GAIN:.0%} or more (reported, with a "
+           "warning); holes = always; none = never, one uncut piece", SEAM_MODES, flag="--seams"),
+    Option("stress", "none", "choice", "smacof = stress majorization (SMACOF, Guttman transform) of the raw stress "
+           "of Eq. 1 on the geodesic distances MDS used, applied to the MDS layout before refine (BENCHMARKS.md "
+           "§7); none = the MDS layout as is", STRESS_MODES, flag="--stress"),
+    Option("refine_multilevel", MULTILEVEL_MIN_VERTICES, "int", "meshes of at least N vertices are polished "
+           "coarse-to-fine (a ~1/8-size coarse mesh first; docs/refine.md); 0 = never", low=0, high=2**40,
+           flag="--refine-multilevel", metavar="N"),
+    Option("refine_iters", 200, "int", "iteration cap of the symmetric Dirichlet polish", low=0, high=100_000),
+    Option("refine_tol", 1e-6, "float", "the polish stops when an iteration lowers the energy by less than this "
+           "fraction", low=0.0, high=1.0),
+    Option("progress", False, "bool", "show stage messages and progress bars on stderr (the CLI: unless --quiet)"),
+)
+
+_BY_NAME = {o.name: o for o in OPTIONS}
+_CONSTANTS = {"ALL_PAIRS_MAX": ALL_PAIRS_MAX, "ISOMETRIC_START_EXCESS": ISOMETRIC_START_EXCESS,
+              "FOLD_CHECK_MIN_VERTICES": FOLD_CHECK_MIN_VERTICES, "SEAM_TRY_EXCESS": SEAM_TRY_EXCESS,
+              "SEAM_MIN_GAIN": SEAM_MIN_GAIN}
+
+
+def help_text(opt: Option) -> str:
+    """The option's help with the quoted constants filled in."""
+    return opt.help.format(**_CONSTANTS)
+
+
+def check_value(opt: Option, value: Any) -> Any:
+    """``value`` if it is allowed for ``opt``, else :class:`HeatparamError` in API terms (``name=value``)."""
+    if opt.kind == "choice":
+        if value not in opt.choices:
+            raise HeatparamError(f"{opt.name} must be one of {', '.join(opt.choices)}; got {value!r}")
+        return value
+    if opt.kind == "bool":
+        if not isinstance(value, bool):
+            raise HeatparamError(f"{opt.name} must be True or False; got {value!r}")
+        return value
+    if opt.kind == "time":
+        if isinstance(value, str):
+            if value not in opt.choices:
+                raise HeatparamError(f"{opt.name} must be one of {', '.join(opt.choices)} or a positive number; "
+                                     f"got {value!r}")
+            return value
+        return _number(opt, value, float, positive=True)
+    return _number(opt, value, int if opt.kind == "int" else float, positive=opt.kind == "float" and opt.low == 0.0)
+
+
+def _number(opt: Option, value: Any, kind: type, positive: bool) -> Any:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or (kind is int and not float(value).is_integer()):
+        raise HeatparamError(f"{opt.name} must be {'an integer' if kind is int else 'a number'}; got {value!r}")
+    if not math.isfinite(value):
+        raise HeatparamError(f"{opt.name} must be finite; got {value!r}")
+    if positive and not value > 0:
+        raise HeatparamError(f"{opt.name} must be positive; got {value!r}")
+    if (opt.low is not None and value < opt.low) or (opt.high is not None and value > opt.high):
+        raise HeatparamError(f"{opt.name} must be between {opt.low:g} and {opt.high:g}; got {value!r}")
+    return kind(value)
+
+
+def _validate(self) -> None:
+    """Raise :class:`HeatparamError` for a value outside its range (every option, from the table)."""
+    for opt in OPTIONS:
+        setattr(self, opt.name, check_value(opt, getattr(self, opt.name)))
+    if self.landmarks in (1, 2):
+        raise HeatparamError(f"landmarks must be 0 (automatic) or at least 3; got {self.landmarks}")
+
+
+def _replace(self, **changes) -> Options:
+    """A copy with ``changes`` applied (validated)."""
+    out = Options(**{**asdict(self), **changes})
+    out.validate()
+    return out
+
+
+Options = make_dataclass(
+    "Options",
+    [(o.name, type(o.default) if o.kind != "time" else str | float, field(default=o.default)) for o in OPTIONS],
+    namespace={"validate": _validate, "replace": _replace, "__module__": __name__},
+)
+Options.__doc__ = "Every knob of the pipeline (:data:`OPTIONS` is the table of allowed values and help).\n\n" + "\n".join(
+    f"{o.name} : default={o.default!r}. {help_text(o)}" for o in OPTIONS)
+
+
+def make_options(options: Options | None = None, **overrides) -> Options:
+    """An :class:`Options` from ``options`` (or the defaults) with keyword ``overrides``, validated.
+
+    Raises HeatparamError for an unknown name or a value outside its range."""
+    unknown = sorted(set(overrides) - set(_BY_NAME))
+    if unknown:
+        raise HeatparamError(f"unknown option {unknown[0]!r}; the options are {', '.join(_BY_NAME)}")
+    opts = Options(**{**(asdict(options) if options is not None else {}), **overrides})
+    opts.validate()
+    return opts
+
+
+def cli_options() -> list[Option]:
+    """The options the command line offers, in table order."""
+    return [o for o in OPTIONS if o.flag]
+
+
+_API_SPELLING = re.compile(r"\b(" + "|".join(o.name for o in OPTIONS) + r")=(?:'([^']*)'|(\S+?))(?=[\s,;)]|$)")
+
+
+def to_cli_terms(message: str) -> str:
+    """A library message with ``name='value'`` / ``name=value`` spellings of options turned into their flags."""
+
+    def sub(m: re.Match) -> str:
+        opt = _BY_NAME[m.group(1)]
+        if not opt.flag:
+            return m.group(0)
+        return f"{opt.flag} {m.group(2) if m.group(2) is not None else m.group(3)}"
+
+    return _API_SPELLING.sub(sub, message)
+
+
+def markdown_table() -> str:
+    """The README's option table (command-line options), generated from :data:`OPTIONS`."""
+    rows = ["| option | meaning | default |", "|---|---|---|"]
+    for o in cli_options():
+        spell = f"`{o.flag} {{{','.join(o.choices)}}}`" if o.kind == "choice" else f"`{o.flag} {o.metavar or ''}`"
+        rows.append(f"| {spell.replace(' `', '`')} | {help_text(o)} | `{o.default}` |")
+    return "\n".join(rows)

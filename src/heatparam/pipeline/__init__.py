@@ -1,0 +1,130 @@
+"""The orchestrator: one mesh down the paper's stages (Figure 1) and ours, with a report.
+
+``parameterize(V, F, **options)`` → :class:`Result` (unpacks as ``uv, report``). It never touches files.
+
+::
+
+    validate + compact (surface)                   mesh.validate_mesh, Surface
+      └ flatten(surface)
+          fill decision                            heat_stage.decide_fill (fill.needs_fill, §2.5)
+          start checks: skip the heat stage?       shortcuts.start_checks (LSCM start, fold check)
+          fill M* → heat geodesics → MDS           heat_stage.mds_map (fill, heat, layout.mds; Eq. 2-16)
+          refine: start + bijective polish         refine.refine
+          metrics                                  report.map_metrics
+      └ seams: flatten(surface cut open)?          seams.seams_stage
+    report + Result                                report.build_report
+
+Each stage returns its value and its part of the report; the report is assembled once, in ``report``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from heatparam.memory import require
+from heatparam.options import Options, make_options
+from heatparam.pipeline.heat_stage import FillSurface, decide_fill, mds_map
+from heatparam.pipeline.report import Flat, Result, build_report, map_metrics, method_report
+from heatparam.pipeline.seams import seams_stage
+from heatparam.pipeline.shortcuts import start_checks
+from heatparam.pipeline.surface import Surface
+from heatparam.progress import Progress
+
+#: Peak memory of the pipeline without the refinement, per vertex (landmark path): ``refine none`` peaked at
+#: 3.5-3.9 KB per vertex on camelhead↑727k and 4.4-5.9 KB on camelhead↑182k, interpreter and libraries included
+#: (BENCHMARKS.md §4). With the refinement, ``refine.polish_bytes`` per face comes on top (727k: 6.3 GB measured,
+#: 6.7 GB estimated).
+RAW_BYTES_PER_VERTEX = 4000
+
+
+def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, **kwargs) -> Result:
+    """Flatten a disk-like triangle mesh near-isometrically (true scale).
+
+    Parameters
+    ----------
+    V : (n,3) float64 vertices.
+    F : (m,3) int64 triangles (consistently oriented).
+    options : an :class:`~heatparam.options.Options`; keyword arguments override its fields
+        (``parameterize(V, F, seed=3)``).
+
+    Returns
+    -------
+    Result(uv (n,2) float64, report dict): uv[i] is the image of V[i]; the report holds the parameters,
+    per-stage timings, mesh facts and the map's metrics (see README). With seams (``Options.seams``,
+    ``Result.seamed``) uv has one row per seam side: face f's corners map to ``uv[Result.Fuv[f]]``.
+
+    Raises
+    ------
+    HeatparamError (MeshError, ResourceError) with a one-line message for bad input or a request that cannot fit.
+
+    Examples
+    --------
+    >>> from heatparam import datasets, parameterize
+    >>> s = datasets.cylinder_patch(h=0.1)
+    >>> uv, report = parameterize(s.V, s.F)
+    >>> report["metrics"]["flips"], round(report["metrics"]["iso_mean"], 3)
+    (0, 1.0)
+    """
+    opts = make_options(options, **kwargs)
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    prog = Progress(opts.progress)
+    with prog.stage("validate"):
+        surface, comp, info = Surface.validated(V, F)
+    _check_memory(len(V), len(F), opts)
+    flat = flatten(surface, opts, prog)
+    sr = seams_stage(surface, opts, prog, flat, flatten)
+    if sr.cut is None:
+        uv = np.zeros((len(V), 2))
+        uv[comp.keep] = flat.uv
+        uv[~info.referenced] = flat.uv.mean(axis=0)
+        Fuv, uv_vertex, without = F, np.arange(len(V), dtype=np.int64), None
+    else:  # the cut mesh's faces are F's, row for row, in compacted and then split vertex ids
+        uv, Fuv, uv_vertex = sr.flat.uv, sr.cut.surface.F, comp.keep[sr.cut.source]
+        without = {"refine": flat.method["refine"], "metrics": flat.summary}
+    warnings = [*info.warnings, *flat.warnings, *sr.warnings]
+    report = build_report(opts, sr.flat, sr.report, without, info.as_dict(), prog, warnings)
+    for w in report["warnings"]:
+        prog.warn(w)
+    return Result(uv, report, sr.flat.fill_surface, Fuv, uv_vertex)
+
+
+def _check_memory(n: int, m: int, opts: Options) -> None:
+    """Refuse at once, not after minutes of work, what memory could not hold."""
+    from heatparam.refine import polish_bytes
+
+    raw = RAW_BYTES_PER_VERTEX * n
+    require(raw, f"parameterizing {n} vertices", "decimate the mesh or split it into patches")
+    if opts.refine != "none":
+        require(raw + polish_bytes(m), f"parameterizing and refining {m} triangles",
+                "use refine='none' (the raw MDS map) or decimate the mesh")
+
+
+def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = False) -> Flat:
+    """The stages on one surface (``seamed``: cut open by the seams stage, whose seams a fill would close again)."""
+    from heatparam.refine import RefineParams, refine
+
+    with prog.stage("fill decision"):
+        fill_used, fill_reason = decide_fill(opts, surface, seamed)
+    check = start_checks(surface, opts, prog)
+    if check.skipped is not None:
+        fill = {"used": False, "reason": fill_reason, "skipped": check.skipped} if fill_used else \
+            {"used": False, "reason": fill_reason}
+        with prog.stage("refine"):
+            uv, refine_report = refine(surface.V, surface.F, None, RefineParams.from_options(opts), prog,
+                                       surface.conformal, check.lscm, surface.gradients())
+        summary = map_metrics(surface.V, surface.F, uv, prog, None)
+        method = method_report(opts, None, check.skipped, fill, refine_report, check.fold_check)
+        return Flat(uv, summary, method, None, None, [])
+    m = mds_map(surface, opts, prog, fill_used, fill_reason)
+    uv, refine_report = m.uv, {"method": opts.refine}
+    if opts.refine != "none":
+        with prog.stage("refine"):
+            uv, refine_report = refine(surface.V, surface.F, uv, RefineParams.from_options(opts), prog,
+                                       surface.conformal, check.lscm, surface.gradients())
+    summary = map_metrics(surface.V, surface.F, uv, prog, m.layout)
+    method = method_report(opts, m.layout, None, m.fill, refine_report, check.fold_check)
+    return Flat(uv, summary, method, m.layout, m.fill_surface, m.warnings)
+
+
+__all__ = ["FillSurface", "Options", "Result", "flatten", "parameterize"]

@@ -1,0 +1,104 @@
+"""What a flattening returns: :class:`Flat` (one flattening of a surface), :class:`Result` (the API's value) and the
+report, assembled here and nowhere else."""
+
+from __future__ import annotations
+
+import platform
+from dataclasses import asdict
+from typing import NamedTuple
+
+import numpy as np
+
+from heatparam import __version__, metrics
+from heatparam.memory import peak_rss_bytes
+from heatparam.pipeline.heat_stage import FillSurface, Layout
+from heatparam.progress import Progress
+
+
+class Flat(NamedTuple):
+    """One flattening of a surface: the map (n,2), its metrics, the report's ``method`` part, the MDS layout it
+    came from (None when the heat stage was skipped), the fill surface (for pictures) and warnings."""
+
+    uv: np.ndarray
+    summary: dict
+    method: dict
+    layout: Layout | None
+    fill_surface: FillSurface | None
+    warnings: list[str]
+
+
+def map_metrics(V: np.ndarray, F: np.ndarray, uv: np.ndarray, prog: Progress, layout: Layout | None) -> dict:
+    """The map's metrics; the sampled Eq. 1 stress against the geodesics when they were computed (else None)."""
+    with prog.stage("metrics"):
+        summary = metrics.summary(V, F, uv)
+        summary["stress_rel_rms"] = (metrics.stress(uv, layout.D_points, layout.stress_columns)
+                                     if layout is not None else None)
+    return summary
+
+
+def method_report(opts, layout: Layout | None, skipped: str | None, fill: dict, refine: dict,
+                  fold_check: dict | None) -> dict:
+    """The report's ``method`` part of one flattening."""
+    return {"geodesics": skipped if layout is None else layout.mode,
+            "solver_backend": None if layout is None else layout.backend, "fill": fill,
+            "stress": (layout.stress if layout is not None else None) or {"method": "none"}, "refine": refine,
+            "mass_matrix": opts.mass, "mollified_edge_length": None if layout is None else layout.mollify_eps,
+            "fold_check": fold_check}
+
+
+class Result(tuple):
+    """What :func:`heatparam.parameterize` returns; unpacks as ``uv, report``.
+
+    uv : (n_uv,2) float64, the map. Without seams n_uv = n and uv[i] is the image of input vertex i. With seams
+        (``report["method"]["seams"]["used"]``) every vertex on a seam has one row per side.
+    report : the JSON-able report.
+    Fuv : (m,3) int64, the rows of ``uv`` at each face's corners (F itself without seams): OBJ's ``f v/vt``.
+    uv_vertex : (n_uv,) int64, the input vertex of each row of ``uv`` (``arange(n)`` without seams).
+    fill_surface : a :class:`FillSurface` when a fill was used (for pictures), else None.
+    """
+
+    def __new__(cls, uv: np.ndarray, report: dict, fill_surface: FillSurface | None = None,
+                Fuv: np.ndarray | None = None, uv_vertex: np.ndarray | None = None):
+        self = super().__new__(cls, (uv, report))
+        self.fill_surface = fill_surface
+        self.Fuv = Fuv
+        self.uv_vertex = uv_vertex if uv_vertex is not None else np.arange(len(uv), dtype=np.int64)
+        return self
+
+    @property
+    def uv(self) -> np.ndarray:
+        return self[0]
+
+    @property
+    def report(self) -> dict:
+        return self[1]
+
+    @property
+    def seamed(self) -> bool:
+        """Whether the map has seams (``uv`` rows are not the input's vertices)."""
+        return bool(self.report["method"]["seams"]["used"])
+
+
+def build_report(opts, flat: Flat, seams: dict, without_seams: dict | None, mesh_facts: dict, prog: Progress,
+                 warnings: list[str]) -> dict:
+    """The whole report: parameters, method (with the seams part), mesh facts, metrics, timings, machine,
+    warnings (a last one when the map is not bijective)."""
+    summary, layout = flat.summary, flat.layout
+    if summary["flips"] or summary["boundary_crossings"]:
+        warnings = [*warnings, f"the map is not bijective: {summary['flips']} flipped triangles, "
+                               f"{summary['boundary_crossings']} boundary crossings"]
+    method = {**flat.method, "seams": seams}
+    if without_seams is not None:
+        method["without_seams"] = without_seams
+    return {
+        "heatparam_version": __version__,
+        "parameters": {**asdict(opts), "time_step_value": layout.t if layout else None,
+                       "landmarks_used": layout.k if layout else None},
+        "method": method,
+        "mesh": mesh_facts,
+        "metrics": summary,
+        "timings_s": prog.timings,
+        "peak_rss_mb": round(peak_rss_bytes() / 2**20, 1),
+        "machine": {"python": platform.python_version(), "platform": platform.platform()},
+        "warnings": warnings,
+    }

@@ -1,0 +1,50 @@
+"""The surface a flattening works on: the validated mesh without unreferenced vertices, with what several stages
+share computed once (its LSCM layout, the refinement's per-face gradients)."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import numpy as np
+
+from heatparam.mesh.topology import Compaction, compact
+from heatparam.mesh.validate import MeshInfo, validate_mesh
+
+
+class Surface:
+    """A validated disk (V (n,3), F (m,3)) whose vertices are all referenced, and its :class:`MeshInfo`.
+
+    ``conformal()`` (the free-boundary LSCM layout scaled to the 3D area, read-only) and ``gradients()`` (the
+    refinement's hat gradients and areas) are computed at most once and shared by the fill decision, the start
+    checks and the refinement.
+    """
+
+    def __init__(self, V: np.ndarray, F: np.ndarray, info: MeshInfo):
+        self.V, self.F, self.info = V, F, info
+
+    @classmethod
+    def validated(cls, V: np.ndarray, F: np.ndarray) -> tuple[Surface, Compaction, MeshInfo]:
+        """Validate the input (``mesh.validate_mesh``) and drop its unreferenced vertices: (surface, the
+        compaction that maps input ids to the surface's, the input's MeshInfo)."""
+        info = validate_mesh(V, F)
+        comp = compact(info.referenced)
+        own = dataclasses.replace(info, referenced=np.ones(len(comp.keep), dtype=bool), warnings=[],
+                                  boundary_loops=[comp.remap[lp] for lp in info.boundary_loops])
+        return cls(V[comp.keep], comp.faces(F), own), comp, info
+
+    @functools.cache  # noqa: B019 - one Surface per flattening; the cache lives exactly as long as it
+    def conformal(self) -> np.ndarray:
+        """The LSCM layout (``layout.conformal.conformal_layout``), (n,2), computed once."""
+        from heatparam.layout.conformal import conformal_layout
+
+        uv0 = conformal_layout(self.V, self.F, self.info.boundary_loops[0])
+        uv0.setflags(write=False)
+        return uv0
+
+    @functools.cache  # noqa: B019
+    def gradients(self) -> tuple[np.ndarray, np.ndarray]:
+        """The refinement's per-face hat gradients (m,3,2) and areas (m,) (``refine.energy.surface_gradients``)."""
+        from heatparam.refine.energy import surface_gradients
+
+        return surface_gradients(self.V, self.F)

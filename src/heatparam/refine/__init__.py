@@ -1,0 +1,111 @@
+"""Bijective, near-isometric polish of a layout at true scale (Eq. 1 beyond the paper).
+
+Classical MDS minimizes strain (Eq. 13), not the stress of Eq. 1, and folds on strongly curved disks. This stage
+turns a layout into a bijective map at true scale:
+
+1. **Start** (``start``): of the MDS layout and the free-boundary LSCM layout scaled to the 3D area, the bijective
+   one (no flipped triangle, no boundary crossing) with the lower energy; if neither is bijective, Tutte's
+   embedding of the mesh with every hole closed by a fan (``layout.tutte``), bijective by Tutte's theorem.
+2. **Polish** (``newton``): symmetric Dirichlet energy Σ A_f (|J|² + |J⁻¹|²) (``energy``), minimized by projected
+   Newton with the closed-form Hessian eigensystem of Smith et al. 2019, coarse-to-fine on large meshes
+   (``multilevel``).
+3. **Global bijectivity by a scaffold** (``scaffold``, Jiang et al. 2017): the rest of a box around the layout,
+   re-triangulated at every iteration, joins the energy; the line search never lets a triangle flip.
+
+:func:`refine` ``(V, F, uv, params)`` → (uv, report). Plain arrays in and out; ``report`` is JSON-able.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+from threadpoolctl import ThreadpoolController
+
+from heatparam import metrics
+from heatparam.layout.tutte import build_disk
+from heatparam.options import MULTILEVEL_MIN_VERTICES
+from heatparam.refine.energy import det, jacobians, surface_gradients
+from heatparam.refine.multilevel import multilevel_polish
+from heatparam.refine.start import LscmStart, choose_start
+
+#: Peak memory of the refinement per surface face, above the rest of the pipeline: the peak RSS of the default run
+#: minus that of ``refine none`` measured 2.4 / 1.9 / 2.35 KB per face on camelhead↑45k / 182k / 727k
+#: (BENCHMARKS.md §4: PARDISO's factor of the Hessian, the 6×6 blocks and the pattern's index arrays)
+POLISH_BYTES_PER_FACE = 2600
+
+
+def polish_bytes(faces: int) -> float:
+    """Memory the refinement of a mesh with ``faces`` triangles needs at its peak (estimate), bytes."""
+    return float(POLISH_BYTES_PER_FACE) * faces
+
+
+class RefineParams(NamedTuple):
+    """The refinement's own parameters (``Options`` fields of the same meaning).
+
+    solver : factorization backend (``solvers.Factor``). max_iters : the polish's iteration cap. tol : stop when
+    an iteration lowers the energy by less than this fraction. multilevel : meshes of at least this many vertices
+    are polished coarse-to-fine (0 = never).
+    """
+
+    solver: str = "auto"
+    max_iters: int = 200
+    tol: float = 1e-6
+    multilevel: int = MULTILEVEL_MIN_VERTICES
+
+    @classmethod
+    def from_options(cls, opts) -> RefineParams:
+        return cls(opts.solver, int(opts.refine_iters), float(opts.refine_tol), int(opts.refine_multilevel))
+
+
+def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefineParams = RefineParams(),
+           progress=None, conformal: Callable[[], np.ndarray] | None = None, lscm: LscmStart | None = None,
+           surface: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, dict]:
+    """Make the layout ``uv`` (n,2) of (V (n,3), F (m,3)) bijective and near-isometric (true scale).
+
+    Parameters
+    ----------
+    V : (n,3) float64. F : (m,3) int64, a disk (possibly with holes).
+    uv : (n,2) the MDS layout, or None when none was computed (the pipeline found it could not win).
+    params : :class:`RefineParams`.
+    progress : a ``progress.Progress`` (bars), or None.
+    conformal : returns the LSCM layout if already computed (the fill decision computes it).
+    lscm : the LSCM start already judged (``start.lscm_start``), if any.
+    surface : ``energy.surface_gradients(V, F)`` if already computed.
+
+    Returns
+    -------
+    The refined layout (n,2) and a JSON-able report of what was done (start, polish, multilevel, bijectivity).
+
+    Examples
+    --------
+    >>> from heatparam import datasets
+    >>> s = datasets.cylinder_patch(h=0.1)
+    >>> uv, rep = refine(s.V, s.F, None)
+    >>> rep["bijective"], rep["start"]["layout"]
+    (True, 'lscm')
+    """
+    t0 = time.perf_counter()
+    disk = build_disk(V, F)
+    loops = disk.loops
+    g, area = surface if surface is not None else surface_gradients(V, F)
+    x, start = choose_start(V, F, uv, disk, g, area, lscm, conformal, params.solver)
+    report: dict = {"method": "sd", "holes": len(disk.holes), "start": start}
+    # One OpenBLAS thread: the polish's vector work is small, and OpenBLAS threads on it cost 10-60% on 2 cores
+    # (2.2 s vs 2.5 s on camelhead alone, 6.2 s with another process busy). MKL (PARDISO) keeps its threads.
+    with ThreadpoolController().select(internal_api="openblas").limit(limits=1):
+        x, pinfo, report["multilevel"] = multilevel_polish(V, F, x, loops, g, area, min_vertices=params.multilevel,
+                                                           max_iters=params.max_iters, tol=params.tol,
+                                                           backend=params.solver, progress=progress)
+    pinfo["method"] = "projected-newton + scaffold"
+    report["polish"] = pinfo
+    report["flips"] = int((det(jacobians(x, F, g)) <= 0).sum())
+    report["boundary_crossings"] = int(metrics.boundary_crossings(x, F))
+    report["bijective"] = report["flips"] == 0 and report["boundary_crossings"] == 0
+    report["seconds"] = round(time.perf_counter() - t0, 3)
+    return x, report
+
+
+__all__ = ["POLISH_BYTES_PER_FACE", "LscmStart", "RefineParams", "polish_bytes", "refine"]

@@ -1,0 +1,137 @@
+"""The symmetric Dirichlet energy of a layout: per-face Jacobians, energy, gradient, PSD-projected Hessian blocks.
+
+Symmetric Dirichlet energy Σ A_f (|J|² + |J⁻¹|²) (Eq. 1's isometric goal at true scale: its minimum is the isometry
+itself, no rescaling), with the closed-form Hessian eigensystem of Smith et al. 2019 (:func:`sd_eigensystem`; the
+PSD projection is a clamp of one eigenvalue), and the largest step keeping every det J positive (Smith & Schaefer
+2015, :func:`max_step`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from heatparam.operators import edge_lengths, intrinsic_areas, local_triangles, mollify
+
+
+def hat_gradients(P: np.ndarray) -> np.ndarray:
+    """Gradients (m,3,2) of the three hat functions of each rest triangle P (m,3,2) (counter-clockwise).
+
+    The Jacobian of the map taking P to the UV triangle Q (m,3,2) is ``J[a,c] = Σ_i Q[i,a] g[i,c]``.
+    """
+    E = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=2)  # (m,2,2) columns = edges
+    Einv = np.linalg.inv(E)  # rows = gradients of the hats of corners 1 and 2
+    g = np.empty((len(P), 3, 2))
+    g[:, 1] = Einv[:, 0]
+    g[:, 2] = Einv[:, 1]
+    g[:, 0] = -(g[:, 1] + g[:, 2])
+    return g
+
+def jacobians(uv: np.ndarray, F: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """Per-face Jacobians (m,2,2) of the map to ``uv`` (n,2)."""
+    return np.matmul(uv[F].transpose(0, 2, 1), g)
+
+def det(J: np.ndarray) -> np.ndarray:
+    return J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
+
+def scatter(dJ: np.ndarray, F: np.ndarray, g: np.ndarray, n: int) -> np.ndarray:
+    """Chain rule: per-face dE/dJ (m,2,2) → dE/duv (n,2)."""
+    dQ = np.matmul(g, dJ.transpose(0, 2, 1))  # (m,3,2)
+    out = np.empty((n, 2))
+    idx = F.ravel()
+    out[:, 0] = np.bincount(idx, weights=dQ[:, :, 0].ravel(), minlength=n)
+    out[:, 1] = np.bincount(idx, weights=dQ[:, :, 1].ravel(), minlength=n)
+    return out
+
+def symmetric_dirichlet(J: np.ndarray, w: np.ndarray) -> tuple[float, np.ndarray]:
+    """Σ w_f (|J|² + |J⁻¹|²) and per-face values (inf where det J ≤ 0)."""
+    d = det(J)
+    f2 = (J * J).sum(axis=(1, 2))
+    with np.errstate(divide="ignore"):
+        e = np.where(d > 0, f2 * (1.0 + 1.0 / np.where(d > 0, d, 1.0) ** 2), np.inf)
+    return float(np.dot(w, e)) if np.all(d > 0) else float("inf"), e
+
+def normalized_energy(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray) -> float:
+    """Symmetric Dirichlet energy per area / 4 of a layout (1 = isometry)."""
+    return symmetric_dirichlet(jacobians(uv, F, g), area / area.sum())[0] / 4
+
+def max_step(J: np.ndarray, D: np.ndarray) -> float:
+    """Largest t ≤ ∞ such that det(J + sD) > 0 for all s in [0, t) (per-face quadratic, first positive root)."""
+    c = det(J)
+    a = det(D)
+    b = J[:, 0, 0] * D[:, 1, 1] + D[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * D[:, 1, 0] - D[:, 0, 1] * J[:, 1, 0]
+    t = np.full(len(c), np.inf)
+    lin = np.abs(a) <= 1e-14 * (np.abs(b) + np.abs(c))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tl = -c / b
+        t = np.where(lin & (tl > 0), tl, t)
+        disc = b * b - 4 * a * c
+        ok = ~lin & (disc >= 0)
+        sq = np.sqrt(np.where(ok, disc, 0.0))
+        # numerically stable roots
+        q = -0.5 * (b + np.sign(b + (b == 0)) * sq)
+        r1 = q / a
+        r2 = c / q
+        r1 = np.where(ok & (r1 > 0), r1, np.inf)
+        r2 = np.where(ok & (r2 > 0), r2, np.inf)
+        t = np.minimum(t, np.where(ok, np.minimum(r1, r2), np.inf))
+    return float(t.min()) if len(t) else float("inf")
+
+def svd2(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Signed closed-form SVD of 2×2 matrices: J = U diag(σ) Vᵀ with U, V rotations, σ1 ≥ |σ2|.
+
+    J (m,2,2) → U (m,2,2), σ (m,2), V (m,2,2); σ2 > 0 exactly where det J > 0.
+    """
+    a, b, c, d = J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1]
+    e, f, g, h = 0.5 * (a + d), 0.5 * (a - d), 0.5 * (c + b), 0.5 * (c - b)
+    q, r = np.hypot(e, h), np.hypot(f, g)
+    a1, a2 = np.arctan2(g, f), np.arctan2(h, e)
+    return _rot(0.5 * (a2 + a1)), np.stack([q + r, q - r], axis=1), _rot(0.5 * (a1 - a2))
+
+def _rot(t: np.ndarray) -> np.ndarray:
+    c, s = np.cos(t), np.sin(t)
+    return np.stack([np.stack([c, -s], axis=1), np.stack([s, c], axis=1)], axis=1)
+
+def sd_eigensystem(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Gradient and Hessian eigenvalues of Ψ(J) = |J|² + |J⁻¹|² = Σ σᵢ² + σᵢ⁻² (det J > 0).
+
+    Closed form (Smith et al. 2019, 2D case): with J = U diag(σ) Vᵀ (columns uᵢ, vᵢ), ∂Ψ/∂J = U diag(2σ − 2σ⁻³) Vᵀ
+    and the Hessian's eigenpairs are (2 + 6σ₁⁻⁴, u₁v₁ᵀ), (2 + 6σ₂⁻⁴, u₂v₂ᵀ), twist
+    (2 − 2(σ₁² − σ₁σ₂ + σ₂²)/(σ₁σ₂)³, (u₂v₁ᵀ − u₁v₂ᵀ)/√2) and flip (2 + 2(σ₁² + σ₁σ₂ + σ₂²)/(σ₁σ₂)³,
+    (u₁v₂ᵀ + u₂v₁ᵀ)/√2). Only the twist eigenvalue can be negative, so the PSD projection is a clamp.
+
+    Returns dΨ/dJ (m,2,2), eigenvalues λ (m,4) in that order, U (m,2,2) and V (m,2,2).
+    """
+    U, s, V = svd2(J)
+    s1, s2 = s[:, 0], s[:, 1]
+    p3 = (s1 * s2) ** 3
+    lam = np.stack([2 + 6 / s1**4, 2 + 6 / s2**4, 2 - 2 * (s1 * s1 - s1 * s2 + s2 * s2) / p3,
+                    2 + 2 * (s1 * s1 + s1 * s2 + s2 * s2) / p3], axis=1)
+    dpsi = 2 * s - 2 / s**3
+    grad = np.matmul(U * dpsi[:, None, :], V.transpose(0, 2, 1))
+    return grad, lam, U, V
+
+def sd_newton_blocks(J: np.ndarray, g: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-face gradient dE/dJ (m,2,2) and PSD-projected Hessian (m,6,6) in the corner unknowns of
+    E = Σ w_f Ψ(J_f), J = Σ_i uv_i ⊗ g_i; the unknowns of a face are ordered (u₀,u₁,u₂,v₀,v₁,v₂).
+
+    An eigenmatrix u vᵀ pulls back to the corners as u ⊗ (g v), so the block is Σ_k λ_k⁺ b_k b_kᵀ.
+    """
+    grad, lam, U, V = sd_eigensystem(J)
+    m = len(J)
+    gv = np.matmul(g, V)  # (m,3,2): column j = g·v_j per corner
+    u1, u2 = U[:, :, 0, None], U[:, :, 1, None]  # (m,2,1)
+    a11 = (u1 * gv[:, None, :, 0]).reshape(m, 6)  # u1 ⊗ g v1
+    a22 = (u2 * gv[:, None, :, 1]).reshape(m, 6)
+    a21 = (u2 * gv[:, None, :, 0]).reshape(m, 6)
+    a12 = (u1 * gv[:, None, :, 1]).reshape(m, 6)
+    r = 1.0 / np.sqrt(2.0)
+    b = np.stack([a11, a22, r * (a21 - a12), r * (a12 + a21)], axis=1)  # (m,4,6)
+    lw = w[:, None] * np.maximum(lam, 0.0)
+    blocks = np.matmul(b.transpose(0, 2, 1) * lw[:, None, :], b)
+    return w[:, None, None] * grad, blocks
+
+def surface_gradients(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Hat gradients (m,3,2) of each 3D triangle in its own frame, and the areas (m,) (mollified lengths)."""
+    raw = edge_lengths(V, F)
+    lengths, _ = mollify(raw, 1e-4 * float(raw.mean()))
+    return hat_gradients(local_triangles(lengths)), intrinsic_areas(lengths)

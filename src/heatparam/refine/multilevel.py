@@ -1,0 +1,221 @@
+"""Coarse-to-fine polish: polish a coarse mesh, prolongate, repair the few flips, polish the fine mesh from there."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from heatparam import metrics
+from heatparam.mesh.planar import make_ccw, triangulate
+from heatparam.mesh.topology import face_areas
+from heatparam.refine.energy import det, jacobians, normalized_energy, surface_gradients
+from heatparam.refine.newton import polish
+from heatparam.refine.scaffold import loop_edges, loop_ranges
+
+
+COARSE_FRACTION = 1 / 8  # each coarser level has about this fraction of the vertices (camelhead↑727k: at 1/27 the
+#                          repair of the prolongation's flips failed, at 1/6.5 it needed 7 rounds) ...
+
+#                          repair of the prolongation's flips failed, at 1/6.5 it needed 7 rounds) ...
+COARSE_MIN = 8_000  # ... but at least this many; levels of >= refine_multilevel vertices get a coarser level too
+
+REPAIR_RINGS = 8  # each repair round re-solves the flipped faces' 8-ring neighbourhoods ...
+
+REPAIR_ROUNDS = 12  # ... at most this many rounds
+
+MULTILEVEL_MIN_EXCESS = 1e-2  # coarse-to-fine only when the start's energy exceeds 1 (isometry) by more than this
+
+#: After a converged coarse level the fine polish stops at this multiple of ``refine_tol``: its start is already
+#: within ~0.5% of the minimum, and at 1e-6 its last 2 of 7 Newton iterations (camelhead↑182k, ~2.5 s each) gained
+#: < 1e-5 of the energy together and no metric to 4 digits (iso mean 2.05884 at 1e-4 and 1e-6; docs/refine.md)
+MULTILEVEL_FINE_TOL_FACTOR = 100.0
+
+def coarse_vertices(V: np.ndarray, F: np.ndarray, loops: list[np.ndarray], target: int) -> np.ndarray:
+    """About ``target`` surface vertices spread evenly in 3D: every boundary vertex (loop order), then per cell of
+    a uniform grid (cell side √(area/target)) the interior vertex nearest the cell centre, skipping cells that hold
+    boundary vertices. Deterministic. Returns vertex ids (k,), boundary loops first."""
+    bnd = np.concatenate(loops)
+    h = float(np.sqrt(face_areas(V, F).sum() / target))
+    lo = V.min(axis=0)
+    key = np.floor((V - lo) / h).astype(np.int64)
+    _, cell = np.unique(key, axis=0, return_inverse=True)
+    cell = cell.ravel()
+    dist = np.linalg.norm(V - (lo + (key + 0.5) * h), axis=1)
+    order = np.lexsort((dist, cell))
+    first = order[np.r_[True, cell[order][1:] != cell[order][:-1]]]  # nearest the centre, per cell
+    blocked = np.zeros(int(cell.max()) + 1, dtype=bool)
+    blocked[cell[bnd]] = True
+    return np.concatenate([bnd, np.sort(first[~blocked[cell[first]]])]).astype(np.int64)
+
+def coarse_mesh(uv: np.ndarray, loops: list[np.ndarray], ids: np.ndarray) -> np.ndarray:
+    """Triangles (c,3) over ``ids`` (boundary loops first, as :func:`coarse_vertices`): the constrained Delaunay
+    triangulation of ``uv[ids]`` inside the outer loop and outside the holes (gpytoolbox, no Steiner points),
+    counter-clockwise. ``uv`` (n,2) must be bijective, so the coarse faces tile the same region of the plane."""
+    P = uv[ids]
+    P2, T = triangulate(P, loop_edges(loop_ranges(loops)))
+    if len(P2) != len(ids):
+        raise ValueError("the coarse triangulation added vertices")
+    return make_ccw(P, T)
+
+def prolongate(uv: np.ndarray, uvc0: np.ndarray, T: np.ndarray, uvc: np.ndarray) -> np.ndarray:
+    """Carry the coarse result to every fine vertex: locate each point of ``uv`` (n,2) in the coarse triangles T
+    laid out at ``uvc0`` (their start positions, the same region) and apply the barycentric combination of the
+    polished coarse positions ``uvc``. A piecewise-affine map of a bijective layout, (n,2)."""
+    import igl
+
+    _, face, C = igl.point_mesh_squared_distance(uv, uvc0, T)
+    a, b, c = (uvc0[T[face, i]] for i in range(3))
+    e1, e2, p = b - a, c - a, C - a
+    den = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    l1 = (p[:, 0] * e2[:, 1] - p[:, 1] * e2[:, 0]) / den
+    l2 = (e1[:, 0] * p[:, 1] - e1[:, 1] * p[:, 0]) / den
+    l0 = 1.0 - l1 - l2
+    return l0[:, None] * uvc[T[face, 0]] + l1[:, None] * uvc[T[face, 1]] + l2[:, None] * uvc[T[face, 2]]
+
+def mean_value_laplacian(X: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
+    """Floater's mean value Laplacian D − W of the triangles F over points ``X`` (n,2) or (n,3):
+    w_ij = (tan(α/2) + tan(β/2)) / |X_i − X_j| with α, β the angles at i beside edge ij. Positive weights (so a
+    convex boundary gives a flip-free interpolant); in the plane they reproduce affine maps of ``X`` exactly."""
+    n = len(X)
+    rows, cols, vals = [], [], []
+    for c in range(3):
+        i, j, k = F[:, c], F[:, (c + 1) % 3], F[:, (c + 2) % 3]
+        eij, eik = X[j] - X[i], X[k] - X[i]
+        lij, lik = np.linalg.norm(eij, axis=1), np.linalg.norm(eik, axis=1)
+        cos = np.clip((eij * eik).sum(axis=1) / (lij * lik), -1.0, 1.0)
+        t = np.tan(0.5 * np.arccos(cos))
+        rows += [i, i]
+        cols += [j, k]
+        vals += [t / lij, t / lik]
+    W = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
+    return (sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
+
+def repair_flips(x: np.ndarray, ref: np.ndarray, F: np.ndarray, g: np.ndarray, locked: np.ndarray
+                 ) -> tuple[np.ndarray | None, int, int]:
+    """Unflip the few faces a prolongation flips (needle triangles straddling a coarse edge): re-solve the union of
+    the flipped faces' ``REPAIR_RINGS``-ring neighbourhoods as mean value (Floater) interpolants with the weights
+    of the layout ``ref`` (n,2) (the bijective start: locally an affine image of it is flip-free; weights of the
+    3D surface measured worse, camelhead↑45k start energy 1.891 vs 1.877; or ``x`` itself, which those weights
+    reproduce wherever its vertex stars are valid: the fallback, start energy 2.88 vs 1.87 at 182k) and the rest
+    of ``x`` (n,2) as boundary values; grow the union around what is still flipped, at most ``REPAIR_ROUNDS``
+    times.
+    ``locked`` (n,) bool: vertices never moved.
+    Returns (layout or None when flips remain, faces flipped at first, rounds)."""
+    n = len(x)
+    bad = np.flatnonzero(det(jacobians(x, F, g)) <= 0)
+    first = len(bad)
+    if first == 0:
+        return x, 0, 0
+    L = mean_value_laplacian(ref, F)
+    adj = (abs(L) > 0).astype(np.int8).tocsr()
+    y, region = x.copy(), np.zeros(n, dtype=bool)
+    for r in range(1, REPAIR_ROUNDS + 1):
+        grow = np.zeros(n, dtype=bool)
+        grow[F[bad].ravel()] = True
+        for _ in range(REPAIR_RINGS):
+            grow |= adj @ grow.astype(np.int8) > 0
+        region |= grow
+        free = region & ~locked
+        fi, fx = np.flatnonzero(free), np.flatnonzero(~free)
+        Lf = L[fi]
+        y[fi] = spla.splu(Lf[:, fi].tocsc()).solve(-(Lf[:, fx] @ x[fx]))
+        bad = np.flatnonzero(det(jacobians(y, F, g)) <= 0)
+        if len(bad) == 0:
+            return y, first, r
+    return None, first, REPAIR_ROUNDS
+
+def boundary_faces(F: np.ndarray, boundary: np.ndarray) -> np.ndarray:
+    """The triangles of F (m,3) whose three corners are all boundary vertices (``boundary`` (n,) bool), (k,3)."""
+    return F[boundary[F].all(axis=1)]
+
+def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.ndarray], g: np.ndarray,
+                   *, min_vertices: int, max_iters: int, tol: float, backend: str, progress=None,
+                   guards: np.ndarray | None = None) -> tuple[np.ndarray | None, dict]:
+    """A start for the fine polish from a coarse one: :func:`coarse_vertices` and :func:`coarse_mesh` in the
+    bijective layout ``x`` (n,2), :func:`multilevel_polish` of the coarse mesh from ``x`` (itself coarse-to-fine
+    while a level has >= ``min_vertices`` vertices), :func:`prolongate`, :func:`repair_flips`.
+
+    Every level keeps all boundary vertices, which the repair never moves; so a triangle whose three corners are
+    boundary vertices (a corner "ear" of the scan; plenty in the coarse levels' own triangulations) could come out
+    of the coarse polish flipped, beyond repair, unless the coarse polish keeps it positive: such triangles of this
+    level (and its own ``guards`` (k,3)) are passed down as guards, triangles without energy that the line search
+    keeps positive. Returns (layout (n,2) or None when no bijective one came out, report).
+    """
+    t0 = time.perf_counter()
+    n = len(V)
+    target = int(max(COARSE_FRACTION * n, COARSE_MIN))
+    ids = coarse_vertices(V, F, loops, target)
+    nb = sum(len(lp) for lp in loops)
+    info: dict = {"coarse_vertices": int(len(ids)), "boundary_vertices": int(nb)}
+    if nb > target // 2:
+        return None, info | {"used": False, "reason": "the boundary alone has more than half the coarse vertices"}
+    if len(ids) >= n:
+        return None, info | {"used": False, "reason": "the coarse mesh would not be coarser"}
+    try:
+        T = coarse_mesh(x, loops, ids)
+    except ValueError as exc:
+        return None, info | {"used": False, "reason": str(exc)}
+    gc, ac = surface_gradients(V[ids], T)
+    cloops = loop_ranges(loops)  # the coarse mesh's boundary loops: its first vertices, in loop order
+    locked = np.zeros(n, dtype=bool)
+    locked[ids[:nb]] = True  # the boundary is the coarse one: polished, bijective, kept as is
+    local = np.full(n, -1, dtype=np.int64)
+    local[ids] = np.arange(len(ids))
+    ears = boundary_faces(F if guards is None else np.vstack([F, guards]), locked)
+    xc, cinfo, cml = multilevel_polish(V[ids], T, x[ids], cloops, gc, ac, min_vertices=min_vertices,
+                                       max_iters=max_iters, tol=tol, backend=backend, progress=progress,
+                                       guards=local[ears], label=f"coarse, {len(ids)} vertices")
+    info.update(coarse_polish=cinfo, coarse_multilevel=cml, guards=int(len(ears)))
+    y = prolongate(x, x[ids], T, xc)
+    y[ids] = xc
+    z, flipped, rounds = repair_flips(y, x, F, g, locked)
+    info["repair_weights"] = "start layout"
+    if z is None:
+        # the start's weights fail where the start is far from an affine image of the result (LSCM's scale varies
+        # a lot across a repair region: camelhead↑727k's 111k-vertex level, 4 flips grew to 443); weights of the
+        # prolongated layout itself keep it wherever its stars are valid, and unfold the rest (1 round there)
+        z, _, rounds = repair_flips(y, y, F, g, locked)
+        info["repair_weights"] = "prolongated layout"
+    y = z
+    info.update(prolongation_flips=flipped, repair_rounds=rounds, seconds=round(time.perf_counter() - t0, 3))
+    if y is None:
+        return None, info | {"used": False, "reason": f"{flipped} prolongated faces still flipped after repair"}
+    if metrics.boundary_crossings(y, F):  # cannot happen with the coarse boundary kept; checked, not assumed
+        return None, info | {"used": False, "reason": "the prolongated boundary crosses itself"}
+    return y, info | {"used": True}
+
+def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.ndarray], g: np.ndarray,
+                      area: np.ndarray, *, min_vertices: int, max_iters: int, tol: float, backend: str,
+                      progress=None, guards: np.ndarray | None = None, label: str = "Newton"
+                      ) -> tuple[np.ndarray, dict, dict]:
+    """:func:`polish` of (V (n,3), F (m,3)) from the bijective layout ``x`` (n,2); coarse-to-fine
+    (:func:`coarse_to_fine`) when the mesh has >= ``min_vertices`` (> 0) vertices and ``x`` is more than
+    ``MULTILEVEL_MIN_EXCESS`` above an isometry. After a converged coarse level the polish stops at
+    ``MULTILEVEL_FINE_TOL_FACTOR`` × ``tol``. Returns (layout (n,2), polish report, coarse-to-fine report)."""
+    if not 0 < min_vertices <= len(V):
+        ml: dict = {"used": False, "reason": "small mesh"}
+    elif not normalized_energy(x, F, g, area) > 1.0 + MULTILEVEL_MIN_EXCESS:
+        ml = {"used": False, "reason": "the start is already within 1% of an isometry"}
+    else:
+        try:
+            y, ml = coarse_to_fine(V, F, x, loops, g, min_vertices=min_vertices, max_iters=max_iters, tol=tol,
+                                   backend=backend, progress=progress, guards=guards)
+        except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:  # only a faster start: never fatal
+            y, ml = None, {"used": False, "reason": f"coarse level failed: {exc}"}
+        if y is not None:
+            x = y
+            if ml["coarse_polish"]["converged"]:
+                tol *= MULTILEVEL_FINE_TOL_FACTOR
+            ml["fine_tol"] = tol
+    # open-ended: Newton stops when converged (5-50 iterations measured), far below the cap
+    bar = progress.bar(None, f"polish ({label})") if progress is not None else None
+    try:
+        x, pinfo = polish(x, F, g, area, loops, max_iters=max_iters, tol=tol, backend=backend, bar=bar,
+                          guards=guards)
+    finally:
+        if bar is not None:
+            bar.close()
+    return x, pinfo, ml

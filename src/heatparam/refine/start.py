@@ -1,0 +1,122 @@
+"""The refinement's start: the bijective one of the MDS and LSCM layouts with the lower energy, else Tutte.
+
+Every candidate is judged once, here: flipped faces, boundary crossings, energy (1 = isometry). An MDS layout with
+a few flipped faces is repaired first (:func:`repaired_layout`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+
+from heatparam import metrics
+from heatparam.errors import HeatparamError
+from heatparam.layout.conformal import conformal_layout
+from heatparam.layout.tutte import Disk, build_disk, tutte
+from heatparam.options import ISOMETRIC_START_EXCESS
+from heatparam.refine.energy import det, jacobians, normalized_energy, surface_gradients
+from heatparam.refine.multilevel import repair_flips
+
+
+def conformal_start(V: np.ndarray, F: np.ndarray, disk: Disk) -> np.ndarray:
+    """Free-boundary LSCM scaled to the 3D area and centred (``mds.conformal_layout``), (n,2)."""
+    return conformal_layout(V, F, disk.outer)
+
+def bijectivity(uv: np.ndarray, F: np.ndarray, g: np.ndarray) -> tuple[int, int]:
+    """(flipped faces, boundary crossings) of a layout; crossings are only counted when nothing is flipped."""
+    flips = int((det(jacobians(uv, F, g)) <= 0).sum())
+    return flips, (int(metrics.boundary_crossings(uv, F)) if flips == 0 else -1)
+
+#: An MDS layout with a few flipped faces (at most this fraction, and at least 1) is repaired before it competes as a
+#: start: ``repair_flips`` with the boundary locked, accepted only when the result is bijective. A cylinder patch of
+#: 49k vertices with noise of 0.2 × the edge length: MDS had 3 flips (energy 1.079 after the repair), LSCM energy
+#: 4.69; polish 13 instead of 26 Newton iterations, the same map quality (SD 1.005365, iso 1.0563).
+MDS_REPAIR_MAX_FRACTION = 1e-3
+
+def repaired_layout(x: np.ndarray, F: np.ndarray, g: np.ndarray, loops: list[np.ndarray]
+                    ) -> tuple[np.ndarray | None, dict]:
+    """``x`` (n,2) made bijective by :func:`repair_flips` if only a few of its faces are flipped
+    (≤ ``MDS_REPAIR_MAX_FRACTION``), with the boundary loops locked; (layout or None, report)."""
+    flips = int((det(jacobians(x, F, g)) <= 0).sum())
+    if flips == 0:
+        return None, {"flips": 0, "repaired": False, "reason": "nothing flipped"}
+    if flips > max(1, MDS_REPAIR_MAX_FRACTION * len(F)):
+        return None, {"flips": flips, "repaired": False, "reason": "too many flips to repair"}
+    locked = np.zeros(len(x), dtype=bool)
+    locked[np.concatenate(loops)] = True
+    z, _, rounds = repair_flips(x, x, F, g, locked)
+    if z is None:
+        return None, {"flips": flips, "repaired": False, "reason": f"flips remain after {rounds} rounds"}
+    if metrics.boundary_crossings(z, F):
+        return None, {"flips": flips, "repaired": False, "reason": "the boundary crosses itself"}
+    return z, {"flips": flips, "repaired": True, "rounds": rounds}
+
+class LscmStart(NamedTuple):
+    """The LSCM layout as a start candidate: the layout (None if it failed), flips, crossings (-1 when not
+    counted), its energy per area / 4 (1 = isometry; None unless bijective) and why it failed."""
+
+    uv: np.ndarray | None
+    flips: int
+    crossings: int
+    energy: float | None
+    failed: str | None = None
+
+    @property
+    def near_isometric(self) -> bool:
+        return self.energy is not None and self.energy - 1.0 <= ISOMETRIC_START_EXCESS
+
+def lscm_start(V: np.ndarray, F: np.ndarray, conformal: Callable[[], np.ndarray] | None = None,
+               surface: tuple[np.ndarray, np.ndarray] | None = None) -> LscmStart:
+    """The LSCM layout of (V, F) (``conformal()`` if given, else computed) judged as a start for the polish.
+
+    surface : ``surface_gradients(V, F)`` if already computed.
+    """
+    g, area = surface if surface is not None else surface_gradients(V, F)
+    try:
+        xl = np.array(conformal() if conformal is not None else conformal_start(V, F, build_disk(V, F)))
+    except HeatparamError as exc:  # a degenerate mesh: LSCM is only a candidate start, MDS or Tutte still serve
+        return LscmStart(None, -1, -1, None, str(exc))
+    flips, cross = bijectivity(xl, F, g)
+    e = normalized_energy(xl, F, g, area) if flips == 0 and cross == 0 else None
+    return LscmStart(xl, flips, cross, e)
+
+
+def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk, g: np.ndarray, area: np.ndarray,
+                 lscm: LscmStart | None, conformal: Callable[[], np.ndarray] | None, backend: str
+                 ) -> tuple[np.ndarray, dict]:
+    """The polish's start: of the MDS layout ``uv`` (n,2) (a few flipped faces repaired: :func:`repaired_layout`;
+    None = not computed) and the LSCM layout (``lscm`` if given, else :func:`lscm_start`), the bijective one (no
+    flipped face, no crossing of any boundary loop) with the lower energy; if neither is bijective, Tutte's
+    embedding of the disk. Returns (layout (n,2), the report's ``start`` part)."""
+    if lscm is None:
+        lscm = lscm_start(V, F, conformal, (g, area))
+    cands: dict[str, np.ndarray] = {}
+    energies: dict[str, float] = {}
+    if uv is None:
+        report: dict = {"mds": "not computed (the pipeline's method.geodesics says why)"}
+    else:
+        x = np.asarray(uv, dtype=np.float64)
+        flips, cross = bijectivity(x, F, g)
+        report = {"flips": flips, "crossings": cross}
+        if flips:  # crossings are only counted when nothing is flipped; a repaired layout has none
+            x, report["repair"] = repaired_layout(x, F, g, disk.loops)
+            cross = 0
+        if x is not None and not cross:
+            cands["mds"], energies["mds"] = x, normalized_energy(x, F, g, area)
+    if lscm.failed is not None:
+        report["lscm_failed"] = lscm.failed
+    report.update(lscm_flips=lscm.flips, lscm_crossings=lscm.crossings)
+    if lscm.energy is not None:
+        cands["lscm"], energies["lscm"] = lscm.uv, lscm.energy
+    # of the bijective candidates, start from the one with the lower energy: on developable parts LSCM (already
+    # computed by the fill decision) is an isometry up to round-off, where MDS needs 5-7 Newton iterations
+    if cands:
+        start = min(energies, key=energies.get)
+        x = np.array(cands[start], dtype=np.float64)
+        report["energy"] = energies
+    else:
+        x, start = tutte(V, disk, backend)[: len(V)], "tutte"
+    report["layout"] = start
+    return x, report
