@@ -11,7 +11,7 @@ from common import PEAK_RSS, SHARED, machine, run_isolated
 
 CODE = PEAK_RSS + """
 import json, time
-from heatparam.io import load_mesh
+from heatparam.formats import load_mesh
 from heatparam.pipeline import parameterize
 p = json.load(open(sys.argv[1]))
 t0 = time.perf_counter()

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from heatparam import fill, pipeline, render, shapes
+from heatparam import datasets, fill, pipeline, render
 from heatparam.mesh import validate_mesh
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -23,21 +23,21 @@ MESHES = ROOT.parent / "shared" / "meshes"
 FIGURES = ROOT / "docs" / "figures"
 
 
-def load(name: str) -> shapes.Shape:
+def load(name: str) -> datasets.Shape:
     if name.endswith(".off"):
-        from heatparam.io import load_mesh
+        from heatparam.formats import load_mesh
 
         V, F = load_mesh(MESHES / name)
-        return shapes.Shape(V, F, None, name)
-    return getattr(shapes, name)()
+        return datasets.Shape(V, F, None, name)
+    return getattr(datasets, name)()
 
 
-def run(sh: shapes.Shape, method: str):
+def run(sh: datasets.Shape, method: str):
     t0 = time.perf_counter()
     uv, rep = pipeline.parameterize(sh.V, sh.F, fill=method, refine="none")
     total = time.perf_counter() - t0
     m, fr = rep["metrics"], rep["method"]["fill"]
-    err = shapes.layout_error(uv, sh.uv_true) if sh.uv_true is not None else float("nan")
+    err = datasets.layout_error(uv, sh.uv_true) if sh.uv_true is not None else float("nan")
     row = {
         "mesh": sh.name, "n": len(sh.V), "fill": method,
         "fill_s": rep["timings_s"].get("fill", 0.0), "total_s": total,

@@ -14,7 +14,7 @@ import time
 
 from common import machine, upsampled_camelhead
 
-from heatparam import shapes
+from heatparam import datasets
 from heatparam.pipeline import parameterize
 
 KS = (25, 50, 100, 200, 400)
@@ -24,12 +24,12 @@ def main() -> None:
     print(f"# Landmark count trade-off — {datetime.date.today()} — {machine()}\n")
     print("| mesh | n | geodesics | k | iso mean | layout error / diameter | geodesics s | total s |")
     print("|---|---|---|---|---|---|---|---|")
-    for sh in (shapes.cylinder_patch(), shapes.flat_square()):
+    for sh in (datasets.cylinder_patch(), datasets.flat_square()):
         for mode, k in [("all-pairs", 0)] + [("landmarks", k) for k in KS]:
             t0 = time.perf_counter()
             uv, rep = parameterize(sh.V, sh.F, geodesics=mode, landmarks=k, fill="none", refine="none")
             tt = time.perf_counter() - t0
-            err = shapes.layout_error(uv, sh.uv_true)
+            err = datasets.layout_error(uv, sh.uv_true)
             print(f"| {sh.name} | {len(sh.V)} | {mode} | {rep['parameters']['landmarks_used']} | "
                   f"{rep['metrics']['iso_mean']:.4f} | {err:.4f} | {rep['timings_s']['geodesics']:.2f} | {tt:.2f} |")
     for target in (50000, 200000):

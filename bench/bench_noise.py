@@ -4,7 +4,7 @@ Usage: ``python bench/bench_noise.py [vertices]`` (default 50000).
 A generated cylinder patch of about that many vertices (developable, known flat layout) with Gaussian noise of
 σ = 0, 0.02, 0.05, 0.1, 0.2 × the mean edge length added to every vertex coordinate (seeded), as a scanner would.
 For each: the refinement's start energies (symmetric Dirichlet per area / 4, 1 = isometry) of the MDS and LSCM
-layouts and the one chosen, Newton iterations, iso mean, true-scale layout error (``shapes.layout_error`` against
+layouts and the one chosen, Newton iterations, iso mean, true-scale layout error (``datasets.layout_error`` against
 the noise-free flat layout), seconds with ``--mds-start always`` and with the default ``auto`` (and what ``auto``
 skipped), and whether both maps are bit-identical.
 """
@@ -17,7 +17,7 @@ import time
 import numpy as np
 from common import machine, noisy_cylinder_patch
 
-from heatparam import pipeline, shapes
+from heatparam import datasets, pipeline
 
 NOISE = (0.0, 0.02, 0.05, 0.1, 0.2)
 
@@ -46,7 +46,7 @@ def main() -> None:
         why = ("nothing" if not skipped.startswith("skipped") else
                "heat stage (coarse MDS folds)" if "coarse mesh" in skipped else "heat stage (LSCM near-isometric)")
         print(f"| {sig:g} | {e_mds} | {e_lscm} | {r['start']['layout']} | {r['polish']['iterations']} | "
-              f"{rep['metrics']['iso_mean']:.5f} | {shapes.layout_error(uv, uv_true):.2e} | {t_always:.2f} | "
+              f"{rep['metrics']['iso_mean']:.5f} | {datasets.layout_error(uv, uv_true):.2e} | {t_always:.2f} | "
               f"{t_auto:.2f} | {why} | {'yes' if np.array_equal(uv, uv2) else 'NO'} |", flush=True)
 
 

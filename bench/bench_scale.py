@@ -25,7 +25,7 @@ from common import PEAK_RSS, SHARED, machine, run_isolated, upsampled_camelhead
 HEATPARAM = PEAK_RSS + """
 import json, time
 t0 = time.perf_counter()
-from heatparam.io import load_mesh, save_uv_obj
+from heatparam.formats import load_mesh, save_uv_obj
 from heatparam.pipeline import parameterize
 p = json.load(open(sys.argv[1]))
 t1 = time.perf_counter()
@@ -48,7 +48,7 @@ print(json.dumps({"import": t1 - t0, "load": t2 - t1, "parameterize": t3 - t2, "
 PEER = PEAK_RSS + """
 import json, time
 import numpy as np, igl
-from heatparam.io import load_mesh
+from heatparam.formats import load_mesh
 from heatparam import metrics
 p = json.load(open(sys.argv[1]))
 V, F = load_mesh(p["mesh"])
@@ -73,7 +73,7 @@ print(json.dumps({"seconds": t, "peak_mb": peak_mb(), "flips": s["flips"], "cros
 GEODESICS = PEAK_RSS + """
 import json, time
 import numpy as np, igl
-from heatparam.io import load_mesh
+from heatparam.formats import load_mesh
 from heatparam.heat import HeatGeodesics, time_step
 from heatparam.operators import build_operators
 p = json.load(open(sys.argv[1]))
@@ -131,10 +131,10 @@ def _spread(values: list[float], fmt: str = ".2f") -> str:
 
 def generated_mesh(spec: str, folder: str) -> str:
     """``cylinder_patch@N``: a generated cylinder patch of about N vertices, written to an OBJ in ``folder``."""
-    from heatparam import io, shapes
+    from heatparam import datasets, io
 
     n = int(spec.split("@")[1])
-    s = shapes.cylinder_patch(h=0.04 * float(np.sqrt(2213 / n)))  # 2213 vertices at the default h = 0.04
+    s = datasets.cylinder_patch(h=0.04 * float(np.sqrt(2213 / n)))  # 2213 vertices at the default h = 0.04
     path = str(Path(folder) / f"cylinder_patch_{len(s.V)}.obj")
     io.save_uv_obj(path, s.V, s.F, s.uv_true)
     return path
@@ -185,7 +185,7 @@ def main() -> None:
                     help="fresh-process runs of each heatparam row, and timed runs per geodesics process")
     ap.add_argument("--geodesics-processes", type=int, default=1, help="fresh processes per geodesics mesh")
     args = ap.parse_args()
-    from heatparam.io import save_uv_obj
+    from heatparam.formats import save_uv_obj
 
     print(f"# Scale benchmark — {datetime.date.today()} — {machine()}\n")
     if not args.geodesics_only:
@@ -234,9 +234,9 @@ def scale_table(args, save_uv_obj) -> None:
                 V, F = upsampled_camelhead(size)
                 label = "camelhead↑"
             else:
-                from heatparam import shapes
+                from heatparam import datasets
 
-                sh = shapes.cylinder_patch(h=0.04 * float(np.sqrt(2213 / size)))  # 2213 vertices at h = 0.04
+                sh = datasets.cylinder_patch(h=0.04 * float(np.sqrt(2213 / size)))  # 2213 vertices at h = 0.04
                 V, F, label = sh.V, sh.F, "cylinder_patch"
             path = Path(tmp) / f"{args.surface}{len(V)}.obj"
             save_uv_obj(path, V, F, np.zeros((len(V), 2)))

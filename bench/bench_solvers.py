@@ -21,8 +21,8 @@ import numpy as np
 from common import SHARED, machine, upsampled_camelhead
 
 from heatparam import heat
+from heatparam.formats import load_mesh
 from heatparam.heat import time_step
-from heatparam.io import load_mesh
 from heatparam.operators import build_operators
 from heatparam.solvers import Factor, available_backends
 

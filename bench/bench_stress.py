@@ -1,11 +1,11 @@
 """Stress majorization (SMACOF, ``--stress smacof``) before the polish: does it help? A markdown table on stdout.
 
-Usage: ``python bench/bench_stress.py [name ...]`` (generated shapes or files in ../shared/meshes).
+Usage: ``python bench/bench_stress.py [name ...]`` (generated datasets or files in ../shared/meshes).
 For each mesh: ``--stress none`` / ``smacof`` × ``--refine none`` / ``sd``, every other option at its default
 (fill auto, geodesics auto). Columns: the path SMACOF ran on (all-pairs or landmarks) and its Guttman iterations,
 the relative RMS stress of Eq. 1 on the MDS distances before → after SMACOF, SMACOF seconds, the refinement's
 start layout and Newton iterations, flips, iso mean (``report["metrics"]["iso_mean"]``), true-scale layout error
-(``shapes.layout_error`` / diameter, generated shapes only) and the whole ``parameterize`` call in seconds.
+(``datasets.layout_error`` / diameter, generated datasets only) and the whole ``parameterize`` call in seconds.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import time
 
 from common import load, machine
 
-from heatparam import pipeline, shapes
+from heatparam import datasets, pipeline
 
 SHAPES = ["cylinder_patch", "cylinder_with_holes", "cone_s_strip", "curved_cap_with_holes"]
 MESHES = ["halftunnel.off", "beetle.off", "camelhead.off", "woody.obj", "bump-domain.obj"]
@@ -34,7 +34,7 @@ def row(name: str, V, F, uvt, refine: str, stress: str) -> str:
         sm = "– | – | –"
     r = meth["refine"]
     ref = f"{r['start']['layout']} | {r['polish']['iterations']}" if refine != "none" else "– | –"
-    le = f"{shapes.layout_error(uv, uvt):.2e}" if uvt is not None else "–"
+    le = f"{datasets.layout_error(uv, uvt):.2e}" if uvt is not None else "–"
     return (f"| {name} | {refine} | {stress} | {sm} | {ref} | {m['flips']} | {m['iso_mean']:.4f} | {le} | "
             f"{dt:.2f} |")
 

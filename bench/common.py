@@ -26,11 +26,11 @@ def machine() -> str:
 
 
 def load(name: str):
-    """A generated shape (``heatparam.shapes`` function name) or a ../shared/meshes file: (V, F, uv_true or None)."""
-    from heatparam import io, shapes
+    """A generated shape (``heatparam.datasets`` function name) or a ../shared/meshes file: (V, F, uv_true or None)."""
+    from heatparam import datasets, io
 
-    if hasattr(shapes, name):
-        s = getattr(shapes, name)()
+    if hasattr(datasets, name):
+        s = getattr(datasets, name)()
         return s.V, s.F, s.uv_true
     V, F = io.load_mesh(SHARED / name)
     return V, F, None
@@ -40,7 +40,7 @@ def upsampled_camelhead(target: int) -> tuple[np.ndarray, np.ndarray]:
     """camelhead.off, midpoint-subdivided (igl.upsample) until it has about ``target`` vertices."""
     import igl
 
-    from heatparam.io import load_mesh
+    from heatparam.formats import load_mesh
 
     V, F = load_mesh(SHARED / "camelhead.off")
     while len(V) * 4 <= target * 1.5:
@@ -72,9 +72,9 @@ def noisy_cylinder_patch(target: int, sigma: float, draw: int) -> tuple[np.ndarr
     """A generated cylinder patch of about ``target`` vertices with scanner-like noise: the ``draw``-th
     (n,3) standard normal field of seed 0 times ``sigma`` × the mean edge length, added to the vertices.
     Returns (V, F, uv_true): uv_true is the noise-free flat layout."""
-    from heatparam import shapes
+    from heatparam import datasets
 
-    s = shapes.cylinder_patch(h=0.04 * float(np.sqrt(2213 / target)))  # 2213 vertices at the default h
+    s = datasets.cylinder_patch(h=0.04 * float(np.sqrt(2213 / target)))  # 2213 vertices at the default h
     h = float(np.mean(np.linalg.norm(s.V[s.F[:, 1]] - s.V[s.F[:, 0]], axis=1)))
     rng = np.random.default_rng(0)
     noise = [rng.standard_normal(s.V.shape) for _ in range(draw + 1)][draw]

@@ -7,7 +7,7 @@ import sys
 import numpy as np
 import pytest
 
-from heatparam import io, shapes
+from heatparam import datasets, formats
 from heatparam.cli import main
 
 from conftest import shared_mesh
@@ -22,7 +22,7 @@ def write_off(path, V, F):
 
 @pytest.fixture(scope="module")
 def patch_off(tmp_path_factory):
-    sh = shapes.cylinder_patch(h=0.08)
+    sh = datasets.cylinder_patch(h=0.08)
     p = tmp_path_factory.mktemp("in") / "patch.off"
     write_off(p, sh.V, sh.F)
     return p, sh
@@ -36,7 +36,7 @@ def test_unwrap_round_trip(tmp_path, patch_off):
                  "--fill", "none"])
     assert code == 0
     assert src.read_bytes() == before  # the input is never touched
-    V, F, UV, FUV = io.load_uv_obj(out)
+    V, F, UV, FUV = formats.load_uv_obj(out)
     assert np.allclose(V, sh.V, rtol=0, atol=1e-15)  # vertices in input order, exactly
     assert np.array_equal(F, sh.F) and np.array_equal(FUV, sh.F)  # every face has vt, one vt per vertex
     assert UV.shape == (len(sh.V), 2)
@@ -137,7 +137,7 @@ def test_closed_and_nearly_closed_public_meshes(tmp_path, capsys):
 
 
 def test_zero_area_faces_handled_and_reported(tmp_path):
-    sh = shapes.cylinder_patch(h=0.08)
+    sh = datasets.cylinder_patch(h=0.08)
     V, F = sh.V.copy(), sh.F.copy()
     # collapse one interior triangle onto a line: move a vertex onto the midpoint of the opposite edge
     f = F[len(F) // 2]
@@ -156,7 +156,7 @@ def test_zero_area_faces_handled_and_reported(tmp_path):
 def test_output_equal_to_input_refused(tmp_path, patch_off, capsys):
     src, _ = patch_off
     obj = tmp_path / "in.obj"
-    io.save_uv_obj(obj, *io.load_mesh(src), np.zeros((len(io.load_mesh(src)[0]), 2)))
+    formats.save_uv_obj(obj, *formats.load_mesh(src), np.zeros((len(formats.load_mesh(src)[0]), 2)))
     before = obj.read_bytes()
     assert main(["unwrap", str(obj), "-o", str(obj), "--quiet"]) == 2
     assert "is the input" in capsys.readouterr().err
@@ -200,13 +200,15 @@ def test_refinement_memory_guard(tmp_path, patch_off, capsys, monkeypatch):
 def test_negative_refine_multilevel_is_refused(tmp_path, patch_off, capsys):
     src, _ = patch_off
     out = tmp_path / "o.obj"
-    assert main(["unwrap", str(src), "-o", str(out), "--refine-multilevel", "-1", "--quiet"]) == 2
+    with pytest.raises(SystemExit) as e:  # refused while parsing the arguments, as every table option is
+        main(["unwrap", str(src), "-o", str(out), "--refine-multilevel", "-1", "--quiet"])
     err = capsys.readouterr().err
-    assert "refine_multilevel" in err and len(err.strip().splitlines()) == 1 and not out.exists()
+    assert e.value.code == 2 and "--refine-multilevel" in err and "Traceback" not in err and not out.exists()
+    assert err.strip().splitlines()[-1].startswith("heatparam unwrap: error:")
 
 
 def test_fill_options_reach_the_report(tmp_path):
-    from heatparam import shapes as sh
+    from heatparam import datasets as sh
 
     s = sh.cylinder_with_holes(h=0.09)
     src = tmp_path / "holes.off"
@@ -225,12 +227,12 @@ def test_geodesics_on_a_closed_sphere(tmp_path):
     of the exact great-circle distances (measured 1.1% at 2562 vertices)."""
     import trimesh
 
-    from heatparam import io
+    from heatparam import formats
 
     m = trimesh.creation.icosphere(subdivisions=4, radius=1.0)
     V, F = np.asarray(m.vertices), np.asarray(m.faces, dtype=np.int64)
     src = tmp_path / "sphere.obj"
-    io.save_uv_obj(src, V, F, V[:, :2])
+    formats.save_uv_obj(src, V, F, V[:, :2])
     assert main(["unwrap", str(src), "-o", str(tmp_path / "u.obj"), "--quiet"]) == 2  # still not flattenable
     out = tmp_path / "d.npy"
     assert main(["geodesics", str(src), "--source", "0", "--quiet", "-o", str(out)]) == 0
@@ -241,12 +243,12 @@ def test_geodesics_on_a_closed_sphere(tmp_path):
 
 
 def test_geodesics_unreferenced_vertices_are_unreachable(tmp_path, capsys):
-    sh = shapes.cylinder_patch(h=0.1)
+    sh = datasets.cylinder_patch(h=0.1)
     V = np.vstack([sh.V, [[5.0, 5.0, 5.0]]])  # one stray vertex no face uses
     src = tmp_path / "stray.obj"
-    from heatparam import io
+    from heatparam import formats
 
-    io.save_uv_obj(src, V, sh.F, V[:, :2])
+    formats.save_uv_obj(src, V, sh.F, V[:, :2])
     out = tmp_path / "d.npy"
     assert main(["geodesics", str(src), "--source", "0", "-o", str(out)]) == 0
     D = np.load(out)
@@ -284,13 +286,13 @@ def test_unwrap_with_seams_writes_vt_per_seam_side(tmp_path):
     """halftunnel: the default cuts its holes open (report and warning say so); the OBJ keeps v and f v in input
     order and has more vt than v; `evaluate` on it reproduces the report's metrics. --seams none: one vt per v."""
     src = shared_mesh("halftunnel.off")
-    V, F = io.load_mesh(src)
+    V, F = formats.load_mesh(src)
     out, rep, prev = tmp_path / "h.obj", tmp_path / "h.json", tmp_path / "h.png"
     assert main(["unwrap", str(src), "-o", str(out), "--report", str(rep), "--preview", str(prev), "--quiet"]) == 0
     r = json.loads(rep.read_text())
     seams = r["method"]["seams"]
     assert seams["used"] and any("seams" in w for w in r["warnings"])
-    V2, F2, UV, FUV = io.load_uv_obj(out)
+    V2, F2, UV, FUV = formats.load_uv_obj(out)
     assert np.array_equal(V2, V) and np.array_equal(F2, F)
     assert len(UV) == len(V) + seams["split_vertices"] and not np.array_equal(FUV, F)
     ev = tmp_path / "ev.json"
@@ -300,5 +302,5 @@ def test_unwrap_with_seams_writes_vt_per_seam_side(tmp_path):
     assert prev.read_bytes()[:4] == b"\x89PNG"
     one = tmp_path / "one.obj"
     assert main(["unwrap", str(src), "-o", str(one), "--seams", "none", "--quiet"]) == 0
-    _, _, UV1, FUV1 = io.load_uv_obj(one)
+    _, _, UV1, FUV1 = formats.load_uv_obj(one)
     assert len(UV1) == len(V) and np.array_equal(FUV1, F)

@@ -11,7 +11,7 @@ import igl
 import numpy as np
 import pytest
 
-from heatparam import fill, pipeline, shapes
+from heatparam import datasets, fill, pipeline
 from heatparam.errors import HeatparamError
 from heatparam.mesh import validate_mesh
 
@@ -20,19 +20,19 @@ from conftest import shared_mesh
 METHODS = ("poisson", "biharmonic")
 
 
-def _parameterize(sh: shapes.Shape, method: str):
+def _parameterize(sh: datasets.Shape, method: str):
     """The pipeline's raw map with the fill ``method`` ("none", "poisson", "biharmonic")."""
     return pipeline.parameterize(sh.V, sh.F, fill=method, refine="none")
 
 
 @pytest.fixture(scope="module")
 def s_strip():
-    return shapes.cone_s_strip()
+    return datasets.cone_s_strip()
 
 
 @pytest.fixture(scope="module")
 def cyl_holes():
-    return shapes.cylinder_with_holes()
+    return datasets.cylinder_with_holes()
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -55,22 +55,22 @@ def test_developable_with_fill_is_near_isometric(name, method, request):
     assert m["flips"] == 0
     assert m["boundary_crossings"] == 0
     assert m["iso_mean"] <= 1.10
-    assert shapes.layout_error(uv, sh.uv_true) <= 0.03
+    assert datasets.layout_error(uv, sh.uv_true) <= 0.03
     assert fr["boundary_loops"] == 1
 
 
 @pytest.mark.parametrize("method", METHODS)
 def test_curved_cap_with_fill_is_bijective(method):
-    uv, rep = _parameterize(shapes.curved_cap_with_holes(), method)
+    uv, rep = _parameterize(datasets.curved_cap_with_holes(), method)
     assert rep["metrics"]["flips"] == 0
     assert rep["metrics"]["boundary_crossings"] == 0
 
 
-def _load_shared(name: str) -> shapes.Shape:
-    from heatparam.io import load_mesh
+def _load_shared(name: str) -> datasets.Shape:
+    from heatparam.formats import load_mesh
 
     V, F = load_mesh(shared_mesh(name))
-    return shapes.Shape(V, F, None, name)
+    return datasets.Shape(V, F, None, name)
 
 
 @pytest.mark.parametrize("name", ["halftunnel.off", "beetle.off"])
@@ -89,7 +89,7 @@ def test_shared_meshes_run_with_auto_fill_and_honest_report(name):
 # ----------------------------------------------------------------------------------------------------------
 # needs_fill
 # ----------------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("make", [shapes.flat_disk, shapes.cylinder_patch])
+@pytest.mark.parametrize("make", [datasets.flat_disk, datasets.cylinder_patch])
 def test_convex_patch_needs_no_fill(make):
     sh = make()
     need, why = fill.needs_fill(sh.V, sh.F, validate_mesh(sh.V, sh.F))
@@ -109,7 +109,7 @@ def test_s_strip_needs_fill(s_strip):
 # ----------------------------------------------------------------------------------------------------------
 # trimming and the M -> M* correspondence
 # ----------------------------------------------------------------------------------------------------------
-def _hull_area(sh: shapes.Shape) -> float:
+def _hull_area(sh: datasets.Shape) -> float:
     info = validate_mesh(sh.V, sh.F)
     uv = fill.provisional_layout(sh.V, sh.F, info)
     return fill.concavity(uv, sh.F) * info.area
@@ -117,7 +117,7 @@ def _hull_area(sh: shapes.Shape) -> float:
 
 @pytest.mark.parametrize("method", METHODS)
 def test_fill_is_one_disk_containing_m_and_bounded(method):
-    sh = shapes.cylinder_with_holes(h=0.08)
+    sh = datasets.cylinder_with_holes(h=0.08)
     info = validate_mesh(sh.V, sh.F)
     M = fill.fill_surface(sh.V, sh.F, info, method=method)
     assert M.V.shape[1] == 3 and M.F.dtype == np.int64 and M.face.shape == (len(sh.V),)
@@ -138,7 +138,7 @@ def test_trim_closed_reconstruction_keeps_the_near_side():
     """A closed 'reconstruction' (the whole sphere under a cap) is cut to the cap's hull, near side only."""
     import trimesh
 
-    sh = shapes.curved_cap_with_holes(h=0.07)
+    sh = datasets.curved_cap_with_holes(h=0.07)
     info = validate_mesh(sh.V, sh.F)
     ball = trimesh.creation.icosphere(subdivisions=5, radius=4.0)
     Vp = np.asarray(ball.vertices) + np.array([0.0, 0.0, -4.0])
@@ -163,7 +163,7 @@ def test_biharmonic_fill_contains_m_exactly(s_strip):
 
 def test_auto_depth_is_scale_free(s_strip):
     info = validate_mesh(s_strip.V, s_strip.F)
-    big = shapes.scale_shape(s_strip, 100.0)
+    big = datasets.scale_shape(s_strip, 100.0)
     assert fill.auto_depth(info) == fill.auto_depth(validate_mesh(big.V, big.F))
     assert fill.MIN_DEPTH <= fill.auto_depth(info) <= fill.MAX_DEPTH
 
@@ -179,7 +179,7 @@ def test_unknown_method_is_a_one_line_error(cyl_holes):
 def test_empty_reconstruction_raises(monkeypatch):
     import gpytoolbox
 
-    sh = shapes.cylinder_with_holes(h=0.08)
+    sh = datasets.cylinder_with_holes(h=0.08)
     monkeypatch.setattr(gpytoolbox, "point_cloud_to_mesh",
                         lambda P, N, **kw: (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)))
     with pytest.raises(HeatparamError, match="Poisson reconstruction .* produced no surface"):
@@ -199,7 +199,7 @@ def test_auto_falls_back_when_the_fill_fails(cyl_holes, monkeypatch):
 
 
 def test_poisson_fill_refuses_planar_mesh():
-    sh = shapes.flat_square()
+    sh = datasets.flat_square()
     with pytest.raises(HeatparamError, match="planar"):
         pipeline.parameterize(sh.V, sh.F, fill="poisson")
     uv, rep = pipeline.parameterize(sh.V, sh.F, fill="biharmonic", refine="none")  # the alternative works

@@ -37,7 +37,7 @@ def test_flat_distances_match_euclidean(disk):
 
 
 def test_cylinder_distances_match_unrolled():
-    from heatparam.shapes import cylinder_patch
+    from heatparam.datasets import cylinder_patch
 
     sh = cylinder_patch()
     s = _solver(sh.V, sh.F)
@@ -117,13 +117,13 @@ def test_backends_agree_and_solve_into_out(disk):
 
 
 def test_euclidean_from_is_bit_identical_to_norm():
-    from heatparam.heat import _euclidean_from
+    from heatparam.heat import euclidean_from
 
     rng = np.random.default_rng(5)
     V = rng.standard_normal((3000, 3)) * 10.0 ** rng.integers(-6, 6, (3000, 1))
     VT = np.ascontiguousarray(V.T)
     for i in (0, 17, 2999):
-        assert np.array_equal(_euclidean_from(VT, i), np.linalg.norm(V - V[i], axis=1))
+        assert np.array_equal(euclidean_from(VT, i), np.linalg.norm(V - V[i], axis=1))
 
 
 def test_large_meshes_factorize_with_pardiso_when_installed(disk, monkeypatch):
@@ -161,9 +161,9 @@ def test_threaded_batches_are_bit_identical_to_sequential(disk, monkeypatch):
 
 
 def _flat_strip(length: float, width: float = 0.3, h: float = 0.04):
-    from heatparam import shapes
+    from heatparam import datasets
 
-    uv, F = shapes.mesh_domain([shapes._polygon(np.array([[0, 0], [length, 0], [length, width], [0, width]],
+    uv, F = datasets.mesh_domain([datasets.polygon(np.array([[0, 0], [length, 0], [length, width], [0, width]],
                                                          float), h)], h)
     return np.column_stack([uv, np.zeros(len(uv))]), F
 
@@ -218,9 +218,9 @@ def test_explicit_small_time_step_warns():
 
 
 def test_normalize_keeps_tiny_gradients():
-    from heatparam.heat import _normalize
+    from heatparam.heat import normalize_gradient
 
     gx = np.array([[3e-200, 0.0, 3.0, 1e-160]])
     gy = np.array([[4e-200, 0.0, 4.0, 0.0]])
-    _normalize(gx, gy)
+    normalize_gradient(gx, gy)
     assert np.allclose(gx, [[0.6, 0.0, 0.6, 1.0]]) and np.allclose(gy, [[0.8, 0.0, 0.8, 0.0]])

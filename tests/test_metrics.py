@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from heatparam import metrics as M
+from heatparam.mesh import boundary_loops
 
 
 def grid(nx: int = 6, ny: int = 6, keep=None) -> tuple[np.ndarray, np.ndarray]:
@@ -168,7 +169,7 @@ def test_per_corner_uv_matches_shared_uv():
         assert d_charts[key] == pytest.approx(val, rel=1e-12, abs=1e-12), key
     s_charts = M.summary(V, F, uv2, Fuv)
     assert s_charts["boundary_crossings"] == 0 and s_charts["bijective"] is True
-    assert len(M.boundary_loops(Fuv)) == 2 and len(M.boundary_loops(F)) == 1
+    assert len(boundary_loops(Fuv)) == 2 and len(boundary_loops(F)) == 1
 
 
 def test_duplicated_corner_uvs_are_welded():
@@ -198,18 +199,18 @@ def test_summary_is_json_serializable():
 # ---------------------------------------------------------------------------------------------------------
 def test_boundary_loops():
     V, F = grid(5, 4)
-    (loop,) = M.boundary_loops(F)
+    (loop,) = boundary_loops(F)
     assert len(loop) == 18 and len(set(loop.tolist())) == 18
     nxt = np.roll(loop, -1)
     edges = {tuple(e) for e in M.boundary_edges(F).tolist()}
     assert all((a, b) in edges for a, b in zip(loop.tolist(), nxt.tolist(), strict=True))
     _, Fa = grid(5, 5, keep=lambda i, j: not (1 < i < 3 and 1 < j < 4))  # annulus
-    assert sorted(len(lp) for lp in M.boundary_loops(Fa)) == [6, 20]
+    assert sorted(len(lp) for lp in boundary_loops(Fa)) == [6, 20]
     bowtie = np.array([[0, 1, 2], [0, 3, 4]], dtype=np.int64)
-    loops = M.boundary_loops(bowtie)
+    loops = boundary_loops(bowtie)
     assert sorted(sorted(lp.tolist()) for lp in loops) == [[0, 1, 2], [0, 3, 4]]
     closed = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]], dtype=np.int64)
-    assert M.boundary_loops(closed) == []
+    assert boundary_loops(closed) == []
 
 
 def u_strip():

@@ -33,12 +33,12 @@ def _drop_pair(A: sp.spmatrix, r: int, c: int) -> sp.csc_matrix:
 def test_on_union_places_values_and_keeps_the_old_pattern():
     P = sp.csr_matrix(np.array([[1.0, 2.0, 0.0], [0.0, 3.0, 4.0], [0.0, 0.0, 5.0]]))
     T = sp.csr_matrix(np.array([[7.0, 0.0, 8.0], [0.0, 9.0, 0.0], [0.0, 0.0, 6.0]]))
-    U = solvers._on_union(P, T)
+    U = solvers.on_union(P, T)
     assert U.nnz == 6  # P's 5 entries and T's (0,2)
     assert np.array_equal(U.toarray(), T.toarray())  # T's values; explicit zeros at (0,1) and (1,2)
     assert U.indices[U.indptr[0] : U.indptr[1]].tolist() == [0, 1, 2]
     assert U.indices[U.indptr[1] : U.indptr[2]].tolist() == [1, 2]
-    assert solvers._on_union(P, P).nnz == P.nnz
+    assert solvers.on_union(P, P).nnz == P.nnz
 
 
 @pytest.mark.skipif("pardiso" not in available_backends(), reason="pypardiso not installed")

@@ -92,8 +92,9 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--quiet", action="store_true", help="do not print the metrics")
 
     m = sub.add_parser("demo", help="run on a built-in generated surface (no download)",
-                       description="Unwrap a generated S-shaped strip on a cone (exactly developable) "
-                                   "and write OBJ, report and preview.")
+                       description="Unwrap a generated scan-like part (a noisy cylinder patch with two holes, "
+                                   "in mm) where the heat geodesics and MDS start the refinement, and write "
+                                   "OBJ, report and preview; stderr says which stages ran and why.")
     m.add_argument("-o", "--output-dir", default="heatparam-demo", help="folder for the outputs "
                    "(created; default: %(default)s)")
     m.add_argument("--quiet", action="store_true", help="no progress output")
@@ -115,6 +116,7 @@ def _check_output(path: str, inputs: tuple[str, ...], suffix: str) -> Path:
 def cmd_unwrap(args: argparse.Namespace) -> int:
     from heatparam.formats import load_mesh
     from heatparam.pipeline import parameterize
+    from heatparam.unwrap import write_results
 
     out = _check_output(args.output, (args.input,), ".obj")
     rep = _check_output(args.report, (args.input, args.output), ".json") if args.report else None
@@ -123,31 +125,8 @@ def cmd_unwrap(args: argparse.Namespace) -> int:
     opts = make_options(progress=not args.quiet, **{o.name: getattr(args, o.name) for o in cli_options()})
     result = parameterize(V, F, opts)
     result.report["input"] = str(args.input)
-    _write_results(V, F, result, out, rep, prev, quiet=args.quiet)
+    write_results(V, F, result, out, rep, prev, quiet=args.quiet)
     return 0
-
-
-def _write_results(V, F, result, out: Path, rep: Path | None, prev: Path | None, quiet: bool) -> None:
-    """Preview (optional), OBJ and report (optional) of a pipeline ``Result``, each written atomically."""
-    from heatparam.formats import save_json, save_uv_obj
-
-    uv, report = result
-    if prev is not None:
-        from heatparam import render
-
-        render.save_preview(prev, V[result.uv_vertex], result.Fuv, uv, title=Path(report.get("input", out.stem)).name,
-                            fill_surface=result.fill_surface)
-    save_uv_obj(out, V, F, uv, header=f"heatparam {__version__}: vt = true-scale UV (model units)", Fuv=result.Fuv)
-    if rep is not None:
-        save_json(rep, report)
-    if not quiet:
-        m = report["metrics"]
-        print(
-            f"wrote {out}: {m['flips']} flipped, {m['boundary_crossings']} boundary crossings, "
-            f"isometric distortion mean {m['iso_mean']:.4f} / p95 {m['iso_p95']:.4f}, "
-            f"{sum(report['timings_s'].values()):.2f} s",
-            file=sys.stderr,
-        )
 
 
 def cmd_geodesics(args: argparse.Namespace) -> int:
@@ -195,24 +174,19 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    from heatparam import datasets
-    from heatparam.pipeline import parameterize
+    from heatparam import demo
 
     outdir = Path(args.output_dir)
     if outdir.exists() and not outdir.is_dir():
         raise HeatparamError(f"{outdir} exists and is not a folder")
     outdir.mkdir(parents=True, exist_ok=True)
-    shape = datasets.DEMO_SHAPE()
-    result = parameterize(shape.V, shape.F, progress=not args.quiet)
-    uv, report = result
-    report["input"] = f"generated:{shape.name}"
-    if shape.uv_true is not None:
-        report["metrics"]["layout_error_rel"] = datasets.layout_error(uv, shape.uv_true[result.uv_vertex])
-    _write_results(shape.V, shape.F, result, outdir / "demo.obj", outdir / "demo-report.json",
-                   outdir / "demo-preview.png", quiet=args.quiet)
+    _, summary = demo.run(outdir, quiet=args.quiet)
     if not args.quiet:
-        print(f"demo: {shape.name} ({len(shape.V)} vertices) → {outdir}/demo.obj, demo-report.json, "
-              "demo-preview.png", file=sys.stderr)
+        print(f"demo: {summary['surface']} ({summary['vertices']} vertices, {summary['units']}, noise "
+              f"{summary['noise']}) → {outdir}/{', '.join(summary['outputs'])}", file=sys.stderr)
+        print("demo: stages: " + "; ".join(f"{k}: {v}" for k, v in summary["stages"].items()), file=sys.stderr)
+        if summary["pending_outputs"]:
+            print(f"demo: not written yet: {', '.join(summary['pending_outputs'])}", file=sys.stderr)
     return 0
 
 

@@ -109,9 +109,7 @@ def face_jacobian_singular_values(
 
     Parameters
     ----------
-    V : (n, 3) float64
-    F : (m, 3) int64
-    uv : (n_uv, 2) float64
+    V, F, uv : (n, 3) float64 vertices, (m, 3) int64 triangles, (n_uv, 2) float64 texture coordinates.
     Fuv : (m, 3) int64 or None
         Per-corner indices into ``uv``; None means ``F``.
 
@@ -219,14 +217,7 @@ def per_face_distortion(
 ) -> PerFaceDistortion:
     """Per-face distortion measures, for plotting.
 
-    The UV is first scaled globally so total areas match (see :func:`distortion`).
-
-    Parameters
-    ----------
-    V : (n, 3) float64
-    F : (m, 3) int64
-    uv : (n_uv, 2) float64
-    Fuv : (m, 3) int64 or None
+    The UV is first scaled globally so total areas match. Parameters: as :func:`distortion`.
 
     Returns
     -------
@@ -545,12 +536,7 @@ def stress(uv: np.ndarray, D: np.ndarray, sources: np.ndarray) -> float:
 def summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray | None = None) -> dict[str, Any]:
     """Distortion statistics plus global injectivity checks, as JSON-serializable Python scalars.
 
-    Parameters
-    ----------
-    V : (n, 3) float64
-    F : (m, 3) int64
-    uv : (n_uv, 2) float64
-    Fuv : (m, 3) int64 or None
+    Parameters: as :func:`distortion`.
 
     Returns
     -------

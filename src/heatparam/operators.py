@@ -21,7 +21,6 @@ import scipy.sparse as sp
 from heatparam.options import MASS_KINDS
 
 
-
 def edge_lengths(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Edge lengths (m,3): column c is the length of the edge opposite corner c (libigl convention)."""
     return igl.edge_lengths(V, F)

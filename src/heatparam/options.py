@@ -118,7 +118,7 @@ OPTIONS: tuple[Option, ...] = (
            "of Eq. 1 on the geodesic distances MDS used, applied to the MDS layout before refine (BENCHMARKS.md "
            "§7); none = the MDS layout as is", STRESS_MODES, flag="--stress"),
     Option("refine_multilevel", MULTILEVEL_MIN_VERTICES, "int", "meshes of at least N vertices are polished "
-           "coarse-to-fine (a ~1/8-size coarse mesh first; docs/refine.md); 0 = never", low=0, high=2**40,
+           "coarse-to-fine (a ~1/8-size coarse mesh first; docs/refine.md); 0 = never", low=0,
            flag="--refine-multilevel", metavar="N"),
     Option("refine_iters", 200, "int", "iteration cap of the symmetric Dirichlet polish", low=0, high=100_000),
     Option("refine_tol", 1e-6, "float", "the polish stops when an iteration lowers the energy by less than this "
@@ -158,12 +158,15 @@ def check_value(opt: Option, value: Any) -> Any:
 
 
 def _number(opt: Option, value: Any, kind: type, positive: bool) -> Any:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or (kind is int and not float(value).is_integer()):
+    integral = isinstance(value, int) or (isinstance(value, float) and value.is_integer())
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or (kind is int and not integral):
         raise HeatparamError(f"{opt.name} must be {'an integer' if kind is int else 'a number'}; got {value!r}")
     if not math.isfinite(value):
         raise HeatparamError(f"{opt.name} must be finite; got {value!r}")
     if positive and not value > 0:
         raise HeatparamError(f"{opt.name} must be positive; got {value!r}")
+    if opt.high is None and opt.low is not None and value < opt.low:
+        raise HeatparamError(f"{opt.name} must be at least {opt.low:g}; got {value!r}")
     if (opt.low is not None and value < opt.low) or (opt.high is not None and value > opt.high):
         raise HeatparamError(f"{opt.name} must be between {opt.low:g} and {opt.high:g}; got {value!r}")
     return kind(value)
@@ -189,8 +192,8 @@ Options = make_dataclass(
     [(o.name, type(o.default) if o.kind != "time" else str | float, field(default=o.default)) for o in OPTIONS],
     namespace={"validate": _validate, "replace": _replace, "__module__": __name__},
 )
-Options.__doc__ = "Every knob of the pipeline (:data:`OPTIONS` is the table of allowed values and help).\n\n" + "\n".join(
-    f"{o.name} : default={o.default!r}. {help_text(o)}" for o in OPTIONS)
+Options.__doc__ = ("Every knob of the pipeline (:data:`OPTIONS` is the table of allowed values and help).\n\n"
+                   + "\n".join(f"{o.name} : default={o.default!r}. {help_text(o)}" for o in OPTIONS))
 
 
 def make_options(options: Options | None = None, **overrides) -> Options:

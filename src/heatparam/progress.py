@@ -1,4 +1,9 @@
-"""Stage timing and progress display (tqdm on stderr), silenced by ``quiet``."""
+"""Stage timing and progress display on stderr, silenced by ``quiet``.
+
+On a terminal every stage announces itself when it starts and long loops show tqdm bars. When stderr is not a
+terminal (a log file, a pipe, CI) each stage prints one line when it ends, with its elapsed time, and there are
+no bars: a log gets no carriage returns.
+"""
 
 from __future__ import annotations
 
@@ -9,28 +14,51 @@ from contextlib import contextmanager
 from tqdm import tqdm
 
 
-class Progress:
-    """Records per-stage wall time into ``timings`` and shows progress bars when ``enabled``."""
+def stderr_is_tty() -> bool:
+    """Whether the current ``sys.stderr`` is a terminal (False for anything without a working ``isatty``)."""
+    try:
+        return bool(sys.stderr.isatty())
+    except (AttributeError, ValueError, OSError):
+        return False
 
-    def __init__(self, enabled: bool = False):
+
+class Progress:
+    """Records per-stage wall time into ``timings`` and shows progress on stderr when ``enabled``.
+
+    Parameters
+    ----------
+    enabled : show progress at all (``--quiet`` turns it off); timings are recorded either way.
+    tty : force terminal (True) or log (False) output; None decides from ``sys.stderr`` at each stage.
+    """
+
+    def __init__(self, enabled: bool = False, tty: bool | None = None):
         self.enabled = enabled
+        self.tty = tty
         self.timings: dict[str, float] = {}
+
+    def _tty(self) -> bool:
+        return stderr_is_tty() if self.tty is None else self.tty
 
     @contextmanager
     def stage(self, name: str):
-        """Time a stage (accumulates if the same stage runs twice)."""
-        if self.enabled:
+        """Time a stage (accumulates if the same stage runs twice). Terminal: a line when it starts; log: a line
+        with its elapsed time when it ends (also when it fails)."""
+        tty = self._tty()
+        if self.enabled and tty:
             print(f"heatparam: {name} ...", file=sys.stderr, flush=True)
         t0 = time.perf_counter()
         try:
             yield
         finally:
-            self.timings[name] = round(self.timings.get(name, 0.0) + time.perf_counter() - t0, 4)
+            dt = time.perf_counter() - t0
+            self.timings[name] = round(self.timings.get(name, 0.0) + dt, 4)
+            if self.enabled and not tty:
+                print(f"heatparam: {name}: {dt:.2f} s", file=sys.stderr, flush=True)
 
     def bar(self, total: int | None, desc: str, unit: str = "it") -> tqdm:
-        """A progress bar over ``total`` units (None: open-ended counter); shown only after a second and when
-        enabled."""
-        return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, disable=not self.enabled,
+        """A progress bar over ``total`` units (None: open-ended counter); shown only after a second, when
+        enabled and on a terminal (elsewhere a disabled bar that accepts the same calls)."""
+        return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, disable=not (self.enabled and self._tty()),
                     mininterval=0.5, delay=1.0, leave=False)
 
     def warn(self, message: str) -> None:

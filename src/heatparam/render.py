@@ -4,6 +4,7 @@ beside the 3D mesh textured with a checkerboard through the map. matplotlib, off
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -11,39 +12,284 @@ import numpy as np
 MAX_FACES_3D = 200_000
 
 
-def _figure(ncols: int):
+#: Line colours over both views (the distortion colour map is viridis; flipped faces are red).
+OUTLINE_COLOR = "black"
+HOLE_COLOR = "#ff7f0e"  # orange
+SEAM_COLOR = "#e6007e"  # magenta
+FLIP_COLOR = (0.9, 0.0, 0.0, 1.0)
+#: The 3D checkerboard without charts: greys, so the coloured lines stand out.
+CHECKER_LIGHT = (0.92, 0.92, 0.90)
+CHECKER_DARK = (0.42, 0.45, 0.52)
+#: The colour bar tops out at this percentile of the (finite, unflipped) isometric distortion, at least FLOOR.
+VMAX_PERCENTILE = 99.0
+VMAX_FLOOR = 1.05
+
+
+@dataclass(frozen=True)
+class MapEdges:
+    """The UV boundary edges of a map, by kind, as pairs of ``uv`` rows.
+
+    outline : (a,2) int64, the outer border of the surface (its longest boundary loop in 3D).
+    holes : (b,2) int64, the other boundary loops of the surface (holes).
+    seams : (c,2) int64, UV boundary edges whose 3D edge is interior (each 3D edge appears once per side).
+    n_holes : number of hole loops; n_seams : number of connected seam paths (in 3D).
+    welded : (n_uv,) int64, the 3D vertex of each uv row (rows with the same id are one surface point).
+    """
+
+    outline: np.ndarray
+    holes: np.ndarray
+    seams: np.ndarray
+    n_holes: int
+    n_seams: int
+    welded: np.ndarray
+
+
+def map_edges(V: np.ndarray, F: np.ndarray, vertex: np.ndarray | None = None) -> MapEdges:
+    """Split the UV boundary of a (possibly cut-open) map into outer border, hole loops and seams.
+
+    Parameters
+    ----------
+    V : (n_uv,3) float64, the 3D position of each uv row (``V_in[uv_vertex]`` for a seamed map).
+    F : (m,3) int64, faces on uv rows (``Result.Fuv``).
+    vertex : (n_uv,) int64, the input vertex of each uv row (``Result.uv_vertex``); None: rows at exactly the
+        same 3D position are the same vertex.
+    """
+    import igl
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from heatparam import metrics
+
+    F = np.asarray(F, dtype=np.int64)
+    if vertex is None:
+        _, welded = np.unique(V, axis=0, return_inverse=True)
+    else:
+        welded = np.asarray(vertex, dtype=np.int64)
+    welded = welded.reshape(-1)
+    nw = int(welded.max()) + 1 if len(welded) else 0
+    Vw = np.zeros((nw, 3))
+    Vw[welded] = V
+    Fw = welded[F]
+    be = metrics.boundary_edges(F)  # (b,2) uv rows
+    # how many faces use each 3D edge: 1 = the surface's border, 2 = interior (a UV boundary edge there is a seam)
+    E3 = np.sort(np.concatenate([Fw[:, [0, 1]], Fw[:, [1, 2]], Fw[:, [2, 0]]]), axis=1)
+    keys, counts = np.unique(E3[:, 0] * nw + E3[:, 1], return_counts=True)
+    bw = np.sort(welded[be], axis=1)
+    used = counts[np.searchsorted(keys, bw[:, 0] * nw + bw[:, 1])]
+    seam = used >= 2
+    loop_of = np.full(nw, -1, dtype=np.int64)
+    loops = [np.asarray(lp, dtype=np.int64) for lp in igl.boundary_loop_all(Fw)] if (~seam).any() else []
+    lengths = [np.linalg.norm(Vw[lp] - Vw[np.roll(lp, -1)], axis=1).sum() for lp in loops]
+    for rank, i in enumerate(np.argsort(lengths)[::-1]):
+        loop_of[loops[i]] = rank
+    outer = ~seam & (loop_of[bw[:, 0]] == 0)
+    n_seams = 0
+    if seam.any():
+        s = np.unique(bw[seam], axis=0)
+        verts, local = np.unique(s, return_inverse=True)
+        local = local.reshape(-1, 2)
+        g = coo_matrix((np.ones(len(s)), (local[:, 0], local[:, 1])), shape=(len(verts), len(verts)))
+        n_seams = int(connected_components(g, directed=False)[0])
+    return MapEdges(be[outer], be[~seam & ~outer], be[seam], max(len(loops) - 1, 0), n_seams, welded)
+
+
+def count_charts(F: np.ndarray, n_uv: int) -> int:
+    """Connected pieces of the layout (faces sharing a uv row), (m,3) int64 faces on uv rows."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    F = np.asarray(F, dtype=np.int64)
+    if len(F) == 0:
+        return 0
+    g = coo_matrix((np.ones(2 * len(F)), (np.concatenate([F[:, 0], F[:, 0]]), np.concatenate([F[:, 1], F[:, 2]]))),
+                   shape=(n_uv, n_uv))
+    labels = connected_components(g, directed=False)[1]
+    return int(len(np.unique(labels[F[:, 0]])))
+
+
+def distortion_range(iso: np.ndarray, flipped: np.ndarray | None = None, q: float = VMAX_PERCENTILE,
+                     floor: float = VMAX_FLOOR) -> float:
+    """Top of the distortion colour scale (the bottom is 1, an isometry): the ``q``-th percentile of the finite
+    values of unflipped faces, at least ``floor`` (a near-isometric map keeps a readable scale).
+
+    iso : (m,) float64 ``max(σ1, 1/σ2)`` per face; flipped : (m,) bool or None.
+    """
+    iso = np.asarray(iso, dtype=float)
+    ok = np.isfinite(iso) if flipped is None else np.isfinite(iso) & ~np.asarray(flipped, dtype=bool)
+    if not ok.any():
+        return float(floor)
+    return float(max(floor, np.percentile(iso[ok], q)))
+
+
+def nice_length(x: float) -> float:
+    """The largest 1, 2 or 5 × 10^k that is ≤ x (x > 0): scale bars and checker sizes in round model units."""
+    if not np.isfinite(x) or x <= 0:
+        return 1.0
+    e = 10.0 ** np.floor(np.log10(x))
+    return float(max(m for m in (1.0, 2.0, 5.0, 10.0) if m * e <= x * (1 + 1e-12)) * e)
+
+
+def chart_colors(chart: np.ndarray) -> np.ndarray:
+    """(m,3) RGB per face from its chart id, numbered in the order the ids first appear: tab20 without its
+    oranges, reds and pinks (hole loops, flips, seams), cycling past 14 charts."""
+    import matplotlib
+
+    _, first, inv = np.unique(np.asarray(chart), return_index=True, return_inverse=True)
+    rank = np.argsort(np.argsort(first))
+    cmap = matplotlib.colormaps["tab20"]
+    keep = [i for i in range(20) if i not in (2, 3, 6, 7, 12, 13)]
+    palette = np.array([cmap(keep[i % len(keep)])[:3] for i in range(len(first))])
+    return palette[rank[inv.reshape(-1)]]
+
+
+def _figure(n: int, extra_height: float = 0.0):
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows, cols = (2, 2) if ncols == 4 else (1, ncols)
-    fig, axes = plt.subplots(rows, cols, figsize=(6.4 * cols, 6.4 * rows), dpi=110 if rows == 1 else 80)
-    return plt, fig, np.atleast_1d(axes).ravel()
+    rows, cols = (1, n) if n <= 3 else (2, (n + 1) // 2)
+    fig, axes = plt.subplots(rows, cols, figsize=(6.4 * cols, 6.4 * rows + extra_height), dpi=110 if rows == 1 else 80,
+                             layout="constrained", squeeze=False)
+    axes = axes.ravel()
+    for ax in axes[n:]:
+        ax.set_axis_off()
+    return plt, fig, axes[:n]
 
 
-def draw_layout(ax, F: np.ndarray, uv: np.ndarray, iso: np.ndarray, flipped: np.ndarray, vmax: float = 2.0,
-                title: str = "") -> None:
-    """UV triangles coloured by isometric distortion (1 = isometric), flipped triangles in red."""
+def _segments(X2: np.ndarray, E: np.ndarray) -> np.ndarray:
+    return X2[E] if len(E) else np.zeros((0, 2, 2))
+
+
+def _draw_edges(ax, X2: np.ndarray, edges: MapEdges | None, front=None) -> list:
+    """Outline, hole loops and seams over ``ax`` (X2: (n_uv,2) positions of the uv rows); legend handles.
+    ``front(E)`` (3D views): (k,) bool, which of the (k,2) edges are in front of the surface; the hidden ones are
+    drawn faint."""
+    from matplotlib.collections import LineCollection
+    from matplotlib.lines import Line2D
+
+    if edges is None:
+        return []
+    handles = []
+    for E, color, lw, label in ((edges.outline, OUTLINE_COLOR, 0.8, "outer border"),
+                                (edges.holes, HOLE_COLOR, 1.4, f"hole loops ({edges.n_holes})"),
+                                (edges.seams, SEAM_COLOR, 1.6, f"seams ({edges.n_seams})")):
+        if len(E):
+            seen = np.ones(len(E), dtype=bool) if front is None else front(E)
+            ax.add_collection(LineCollection(_segments(X2, E[seen]), colors=color, linewidths=lw, zorder=3,
+                                             capstyle="round"))
+            if not seen.all():
+                ax.add_collection(LineCollection(_segments(X2, E[~seen]), colors=color, linewidths=0.6 * lw,
+                                                 alpha=0.3, linestyles=(0, (2, 2)), zorder=3))
+            handles.append(Line2D([], [], color=color, lw=2 * lw, label=label))
+    return handles
+
+
+def _front_of(P: np.ndarray, F: np.ndarray, Q: np.ndarray):
+    """A test ``front(E)``: whether the midpoints of edges E (k,2) of the points Q (n_uv,3) (view coordinates,
+    z towards the viewer) are in front of the surface P (p,3), F (f,3), by a depth buffer of the faces' corners,
+    edge midpoints and centroids on a grid of about one mean projected edge per cell. A point is hidden when the
+    surface in its cell is more than three mean 3D edge lengths nearer the viewer (the line lies on the surface
+    itself)."""
+    A, B, C = P[F[:, 0]], P[F[:, 1]], P[F[:, 2]]
+    edge3 = float(np.mean(np.linalg.norm(B - A, axis=1))) if len(F) else 1.0
+    edge2 = float(np.mean(np.linalg.norm((B - A)[:, :2], axis=1))) if len(F) else 1.0
+    lo = P[:, :2].min(axis=0)
+    size = float((P[:, :2].max(axis=0) - lo).max()) or 1.0
+    res = int(np.clip(size / max(edge2, 1e-300), 64, 1024))
+    S = np.concatenate([A, B, C, (A + B) / 2, (B + C) / 2, (C + A) / 2, (A + B + C) / 3])
+    zb = np.full(res * res, -np.inf)
+
+    def cell(X: np.ndarray) -> np.ndarray:
+        ij = np.clip(((X[:, :2] - lo) / (size / res)).astype(np.int64), 0, res - 1)
+        return ij[:, 0] * res + ij[:, 1]
+
+    np.maximum.at(zb, cell(S), S[:, 2])
+
+    def front(E: np.ndarray) -> np.ndarray:
+        M = (Q[E[:, 0]] + Q[E[:, 1]]) / 2
+        return M[:, 2] >= zb[cell(M)] - 3 * edge3
+
+    return front
+
+
+def _scale_bar(ax, units: str | None) -> None:
+    """A horizontal scale bar of a round length in model units, lower left of the data."""
+    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
+
+    x0, x1 = ax.get_xlim()
+    length = nice_length(abs(x1 - x0) / 5)
+    label = f"{length:g} {units}" if units else f"{length:g} model units"
+    ax.add_artist(AnchoredSizeBar(ax.transData, length, label, loc="lower left", pad=0.4, borderpad=0.5,
+                                  sep=4, frameon=True, size_vertical=0, fontproperties={"size": 9}))
+
+
+def draw_layout(ax, F: np.ndarray, uv: np.ndarray, iso: np.ndarray, flipped: np.ndarray, vmax: float | None = None,
+                title: str = "", units: str | None = None, edges: MapEdges | None = None,
+                legend: bool = True) -> float:
+    """UV triangles coloured by isometric distortion (1 = isometric) up to ``vmax`` (None:
+    :func:`distortion_range` of the data), flipped triangles in red, ``edges`` drawn over them, a scale bar in
+    ``units``. Returns the vmax used.
+
+    F : (m,3) int64; uv : (n_uv,2) float64; iso : (m,) float64; flipped : (m,) bool.
+    """
+    import matplotlib.cm as cm
+    import matplotlib.colors as mc
     from matplotlib.collections import PolyCollection
+    from matplotlib.lines import Line2D
 
+    vmax = distortion_range(iso, flipped) if vmax is None else float(vmax)
     cmap = _cmap()
     vals = np.clip(np.nan_to_num(iso, nan=vmax, posinf=vmax), 1.0, vmax)
     colors = cmap((vals - 1.0) / (vmax - 1.0))
-    colors[flipped] = (0.9, 0.0, 0.0, 1.0)
+    colors[flipped] = FLIP_COLOR
     ax.add_collection(PolyCollection(uv[F], facecolors=colors, edgecolors="none", antialiaseds=False))
-    if flipped.any():
+    handles = _draw_edges(ax, uv, edges)
+    nflip = int(np.count_nonzero(flipped))
+    if nflip:
         c = uv[F[flipped]].mean(axis=1)
-        ax.scatter(c[:, 0], c[:, 1], s=12, marker="x", color="red", linewidths=0.8, label=f"{flipped.sum()} flipped")
-        ax.legend(loc="upper right", fontsize=8)
+        ax.scatter(c[:, 0], c[:, 1], s=14, marker="x", color="red", linewidths=0.9, zorder=4)
+        handles.append(Line2D([], [], color="red", marker="x", lw=0, label=f"flipped ({nflip})"))
     ax.set_aspect("equal")
     ax.autoscale_view()
+    ax.margins(x=0.04, y=0.12)  # room for the scale bar under the layout
+    ax.autoscale_view()
+    unit = f" ({units or 'model units'})"
+    ax.set_xlabel(f"u{unit}", fontsize=9)
+    ax.set_ylabel(f"v{unit}", fontsize=9)
+    ax.tick_params(labelsize=8)
     ax.set_title(title or "UV layout: isometric distortion", fontsize=10)
-    import matplotlib.cm as cm
-    import matplotlib.colors as mc
-
+    _scale_bar(ax, units)
+    if legend and handles:
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=len(handles), fontsize=8,
+                  frameon=False)
     sm = cm.ScalarMappable(norm=mc.Normalize(1.0, vmax), cmap=cmap)
-    ax.figure.colorbar(sm, ax=ax, fraction=0.04, pad=0.02, label="max(σ1, 1/σ2)")
+    cb = ax.figure.colorbar(sm, ax=ax, fraction=0.04, pad=0.02, extend="max")
+    cb.set_label(f"isometric distortion max(σ1, 1/σ2); top = {VMAX_PERCENTILE:g}th percentile", fontsize=8)
+    cb.ax.tick_params(labelsize=8)
+    return vmax
+
+
+def draw_charts(ax, F: np.ndarray, uv: np.ndarray, chart: np.ndarray, units: str | None = None,
+                edges: MapEdges | None = None, title: str = "") -> None:
+    """UV triangles in one colour per chart (``chart`` (m,) ids), ``edges`` over them, a scale bar."""
+    from matplotlib.collections import PolyCollection
+
+    ax.add_collection(PolyCollection(uv[F], facecolors=chart_colors(chart), edgecolors="none", antialiaseds=False))
+    handles = _draw_edges(ax, uv, edges)
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.margins(x=0.04, y=0.12)
+    ax.autoscale_view()
+    unit = f" ({units or 'model units'})"
+    ax.set_xlabel(f"u{unit}", fontsize=9)
+    ax.set_ylabel(f"v{unit}", fontsize=9)
+    ax.tick_params(labelsize=8)
+    ax.set_title(title or f"UV layout: {len(np.unique(chart))} charts", fontsize=10)
+    _scale_bar(ax, units)
+    if handles:
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=len(handles), fontsize=8,
+                  frameon=False)
 
 
 def _cmap():
@@ -52,51 +298,120 @@ def _cmap():
     return matplotlib.colormaps["viridis"]
 
 
-def draw_checker_3d(ax, V: np.ndarray, F: np.ndarray, uv: np.ndarray, cells: int = 16, title: str = "") -> None:
-    """The 3D mesh in an orthographic view along its thinnest principal axis, checkerboard through the map."""
+def draw_checker_3d(ax, V: np.ndarray, F: np.ndarray, uv: np.ndarray, cells: int = 16, title: str = "",
+                    chart: np.ndarray | None = None, edges: MapEdges | None = None, units: str | None = None) -> None:
+    """The 3D mesh in an orthographic view along its thinnest principal axis, a checkerboard of round-sized
+    squares (model units) through the map; faces tinted by ``chart`` (m,) when given; ``edges`` (outline,
+    holes, seams) drawn over it."""
+    frame = _principal_frame(V)
+    V0 = V
+    span = float(np.ptp(uv, axis=0).max()) if len(uv) else 1.0
+    cell = nice_length(span / cells) if span > 0 else 1.0
+    idx = np.arange(len(F))
     if len(F) > MAX_FACES_3D:
-        F = F[np.linspace(0, len(F) - 1, MAX_FACES_3D).astype(np.int64)]
-    # Subdivide (3D and UV together) so the checker squares have smooth edges on coarse meshes.
+        idx = np.linspace(0, len(F) - 1, MAX_FACES_3D).astype(np.int64)
+        F = F[idx]
+    # Subdivide (3D and UV together) so the checker squares have smooth edges on coarse meshes; igl.upsample
+    # numbers the 4^levels children of face f as f * 4^levels + k.
     levels = int(np.clip(np.floor(np.log(MAX_FACES_3D / 2 / max(len(F), 1)) / np.log(4)), 0, 2))
     if levels:
         import igl
 
-        P, F = igl.upsample(np.hstack([V, uv]), F, levels)
-        V, uv = P[:, :3], P[:, 3:]
-    span = float(np.ptp(uv, axis=0).max()) or 1.0
-    uvc = uv[F].mean(axis=1) / (span / cells)
+        P, Fs = igl.upsample(np.hstack([V, uv]), F, levels)
+        if len(Fs) == len(F) * 4**levels:
+            V, uv, F = P[:, :3], P[:, 3:], Fs
+            idx = np.repeat(idx, 4**levels)
+    uvc = uv[F].mean(axis=1) / cell
     checker = (np.floor(uvc[:, 0]) + np.floor(uvc[:, 1])) % 2
-    base = np.where(checker[:, None] > 0, [[0.95, 0.55, 0.1]], [[0.15, 0.2, 0.55]])
-    _draw_shaded(ax, V, F, base, _principal_frame(V), edges=False)
-    ax.set_title(title or "3D mesh, checkerboard through the map", fontsize=10)
+    if chart is not None:
+        tint = chart_colors(np.asarray(chart)[idx])
+        base = np.where(checker[:, None] > 0, tint, 0.55 * tint)
+    else:
+        base = np.where(checker[:, None] > 0, [CHECKER_LIGHT], [CHECKER_DARK])
+    _draw_shaded(ax, V, F, base, frame, edges=False)
+    if edges is not None:
+        c, Wt = frame
+        P0 = (V0 - c) @ Wt.T
+        _draw_edges(ax, P0[:, :2], edges, front=_front_of((V - c) @ Wt.T, F, P0))
+    ax.set_title(title or f"3D mesh, checkerboard through the map: squares of {cell:g} {units or 'model units'}",
+                 fontsize=10)
+
+
+def _headline(metrics: dict, charts: int, edges: MapEdges | None) -> str:
+    def num(key: str, fmt: str) -> str:
+        v = metrics.get(key)
+        return "n/a" if v is None else format(v, fmt)
+
+    parts = [f"iso mean {num('iso_mean', '.4f')}", f"p95 {num('iso_p95', '.4f')}",
+             f"flipped {num('flips', 'd')}", f"boundary crossings {num('boundary_crossings', 'd')}",
+             f"charts {charts}"]
+    if edges is not None:
+        parts += [f"holes {edges.n_holes}", f"seams {edges.n_seams}"]
+    return "   ·   ".join(parts)
 
 
 def save_preview(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.ndarray, title: str = "",
-                 fill_surface=None) -> None:
-    """Write the preview PNG atomically: the UV layout coloured by isometric distortion beside the 3D mesh with
-    a checkerboard through the map (paper Figures 10-12). With ``fill_surface`` (a pipeline ``FillSurface``),
-    two more panels show M* with M over it (Figure 7) and M*'s MDS layout with M's trimmed layout (Figure 9)."""
-    from heatparam import metrics
+                 fill_surface=None, units: str | None = "mm", chart: np.ndarray | None = None,
+                 metrics: dict | None = None, vertex: np.ndarray | None = None) -> None:
+    """Write the preview PNG atomically.
+
+    Panels: the UV layout coloured by isometric distortion (colour bar from 1 to the data's 99th percentile,
+    flipped faces red, a scale bar in ``units``), the layout by chart (only with ``chart`` of more than one id),
+    and the 3D mesh with a checkerboard through the map (paper Figures 10-12; faces tinted by chart). The outer
+    border, hole loops and seams (UV boundary edges whose 3D edge is interior) are drawn on the layout and the
+    3D view. The headline numbers (iso mean and p95, flips, boundary crossings, charts, holes, seams) head the
+    figure. With ``fill_surface`` (a pipeline ``FillSurface``), two more panels show M* with M over it
+    (Figure 7) and M*'s MDS layout with M's trimmed layout (Figure 9).
+
+    Parameters
+    ----------
+    V : (n_uv,3) float64, the 3D point of each uv row (``V[result.uv_vertex]`` for a seamed map).
+    F : (m,3) int64, faces on uv rows (``result.Fuv``).
+    uv : (n_uv,2) float64, the map in model units.
+    units : the model's length unit for the axes and the scale bar (None: "model units").
+    chart : (m,) int per-face chart id, or None (charts are then the layout's connected pieces).
+    metrics : the report's ``metrics`` (iso_mean, iso_p95, flips, boundary_crossings); None: computed here.
+    vertex : (n_uv,) int64 input vertex of each uv row (``result.uv_vertex``); None: rows at one 3D point weld.
+    """
+    from heatparam import metrics as mt
     from heatparam.formats.files import atomic_write
 
-    pf = metrics.per_face_distortion(V, F, uv)
-    plt, fig, axes = _figure(2 if fill_surface is None else 4)
-    draw_layout(axes[0], F, uv, pf.iso, pf.flipped, title=f"{title} — UV layout (isometric distortion)")
-    draw_checker_3d(axes[1], V, F, uv)
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    uv = np.asarray(uv, dtype=np.float64)
+    if chart is not None:
+        chart = np.asarray(chart).reshape(-1)
+        if len(chart) != len(F):
+            raise ValueError(f"chart has {len(chart)} ids for {len(F)} faces")
+    pf = mt.per_face_distortion(V, F, uv)
+    if metrics is None:
+        metrics = mt.summary(V, F, uv)
+    edges = map_edges(V, F, vertex)
+    charts = len(np.unique(chart)) if chart is not None else count_charts(F, len(uv))
+    show_charts = chart is not None and charts > 1
+    n = 2 + show_charts + (2 if fill_surface is not None else 0)
+    plt, fig, axes = _figure(n, extra_height=0.5)
+    fig.suptitle(f"{title + chr(10) if title else ''}{_headline(metrics, charts, edges)}", fontsize=11)
+    draw_layout(axes[0], F, uv, pf.iso, pf.flipped, units=units, edges=edges,
+                title=f"UV layout{f' ({units})' if units else ''}: isometric distortion")
+    k = 1
+    if show_charts:
+        draw_charts(axes[1], F, uv, chart, units=units, edges=edges)
+        k = 2
+    draw_checker_3d(axes[k], V, F, uv, chart=chart if show_charts else None, edges=edges, units=units)
     if fill_surface is not None:
         from matplotlib.collections import PolyCollection
 
         fs = fill_surface
-        draw_fill_overlay(axes[2], V, F, fs.V, fs.F, f"fill surface M* ({fs.method}, {len(fs.V)} vertices) "
+        draw_fill_overlay(axes[k + 1], V, F, fs.V, fs.F, f"fill surface M* ({fs.method}, {len(fs.V)} vertices) "
                           "with M over it")
-        ax = axes[3]
+        ax = axes[k + 2]
         ax.add_collection(PolyCollection(fs.uv[fs.F], facecolors=(0.8, 0.8, 0.8), edgecolors=(0.6, 0.6, 0.6),
                                          linewidths=0.1))
         ax.add_collection(PolyCollection(fs.uv_points[F], facecolors=(0.35, 0.5, 0.85, 0.7), edgecolors="none"))
         ax.set_aspect("equal")
         ax.autoscale_view()
         ax.set_title("MDS layout of M* (grey) and its trim to M (blue), before refinement", fontsize=10)
-    fig.tight_layout()
     with atomic_write(path, "wb") as fh:
         fig.savefig(fh, format="png")
     plt.close(fig)
@@ -158,7 +473,6 @@ def save_fill_figure(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, Vs: 
     plt, fig, axes = _figure(2)
     draw_surface_3d(axes[0], V, F, color=(0.35, 0.5, 0.85), frame=_principal_frame(V), title=f"{title} — (a) mesh M")
     draw_fill_overlay(axes[1], V, F, Vs, Fs, f"(b) fill surface M* ({len(Vs)} vertices) with M over it")
-    fig.tight_layout()
     with atomic_write(path, "wb") as fh:
         fig.savefig(fh, format="png", dpi=64)
     plt.close(fig)

@@ -69,7 +69,7 @@ class Factor:
         elif backend == "scipy":
             self._f = spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
         else:
-            _prepare_mkl()  # before the import: pypardiso makes a solver at import time
+            prepare_mkl()  # before the import: pypardiso makes a solver at import time
             import pypardiso
 
             self._T = _upper(A)  # PARDISO reads the upper triangle of a symmetric matrix
@@ -90,7 +90,7 @@ class Factor:
         variants (the polish's scaffold) settles after a couple of calls. Other backends: a new :class:`Factor`.
         """
         if self.backend == "pardiso" and A.shape == self._T.shape:
-            T = _on_union(self._T, _upper(A))
+            T = on_union(self._T, _upper(A))
             if T.nnz == self._T.nnz and _pardiso_numeric(self._f, T):
                 self._T = T
                 return self
@@ -133,7 +133,7 @@ def _upper(A: sp.spmatrix) -> sp.csr_matrix:
     return T
 
 
-def _on_union(P: sp.csr_matrix, T: sp.csr_matrix) -> sp.csr_matrix:
+def on_union(P: sp.csr_matrix, T: sp.csr_matrix) -> sp.csr_matrix:
     """T's values on the union of the sparsity patterns of P and T (sorted CSR, same shape), explicit zeros
     where only P has entries."""
     ones = lambda M: sp.csr_matrix((np.ones(M.nnz), M.indices, M.indptr), shape=M.shape)  # noqa: E731
@@ -160,7 +160,7 @@ def _pardiso_numeric(solver, T: sp.csr_matrix) -> bool:
     return True
 
 
-def _prepare_mkl() -> None:
+def prepare_mkl() -> None:
     """Before MKL is loaded: ask for reproducible results, and name libmkl_rt for pypardiso.
 
     - ``MKL_CBWR=AUTO`` (unless set): MKL's conditional numerical reproducibility. Without it PARDISO's threaded

@@ -31,8 +31,9 @@ def cases(load: bool = True, only: str | None = None):
         from heatparam import datasets
         from heatparam.formats import load_mesh
     except ImportError:  # the layout before issue 13 (the reference was recorded with it)
-        from heatparam import shapes as datasets
         from heatparam.io import load_mesh
+
+        from heatparam import shapes as datasets
 
     for name in MESHES:
         if only in (None, name):

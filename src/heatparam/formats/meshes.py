@@ -15,7 +15,6 @@ import numpy as np
 
 from heatparam.errors import HeatparamError
 
-
 MESH_SUFFIXES = (".obj", ".off", ".ply", ".stl", ".glb", ".gltf")
 
 def _triangulate(cells: list[tuple[str, np.ndarray]]) -> np.ndarray:
@@ -44,7 +43,7 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         raise HeatparamError(f"cannot read {p}: unsupported format {suffix!r} (use one of {', '.join(MESH_SUFFIXES)})")
     # meshio keeps OBJ vertices exactly as written; trimesh (process=False, maintain_order=True) reads OFF/PLY
     # polygons (meshio's OFF reader takes triangles only) and glTF scenes. The other library is the fallback.
-    loaders = [_load_obj_fast, _load_meshio, _load_trimesh] if suffix == ".obj" else [_load_trimesh, _load_meshio]
+    loaders = [load_obj_fast, load_meshio, _load_trimesh] if suffix == ".obj" else [_load_trimesh, load_meshio]
     if suffix in (".glb", ".gltf"):
         loaders = [_load_trimesh]
     first_error = None
@@ -52,7 +51,7 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         try:
             V, F = load(p)
             break
-        except _NotSimple:
+        except NotSimpleObj:
             continue
         except HeatparamError as exc:
             first_error = first_error or str(exc)
@@ -67,26 +66,26 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         raise HeatparamError(f"cannot read {p}: the file holds no triangles")
     return V, F
 
-class _NotSimple(Exception):
+class NotSimpleObj(Exception):
     """The OBJ is not a plain triangle mesh: let meshio read it."""
 
 #: OBJ statements the fast path skips, as meshio does (normals and texture coordinates are not used here).
 _OBJ_SKIP = ("vt", "vn", "s", "g", "o", "usemtl", "mtllib")
 
-def _load_obj_fast(p: Path) -> tuple[np.ndarray, np.ndarray]:
+def load_obj_fast(p: Path) -> tuple[np.ndarray, np.ndarray]:
     """Plain triangle OBJ: every ``v`` line has 3 coordinates, every ``f`` line 3 positive vertex indices.
 
     Gives exactly meshio's result (V in file order, parsed by Python's correctly rounded ``float``; faces in
     file order, each corner's vertex index being the part before the first ``/``), without meshio's
     per-line Python loop. Anything else (polygons, negative indices, other statements, odd whitespace) raises
-    :class:`_NotSimple` and the file goes to meshio.
+    :class:`NotSimpleObj` and the file goes to meshio.
     """
     try:
         text = p.read_text(encoding="utf-8")
     except UnicodeDecodeError:
-        raise _NotSimple from None
+        raise NotSimpleObj from None
     if "\t" in text or "\r" in text or "\\" in text:
-        raise _NotSimple
+        raise NotSimpleObj
     v_lines, f_lines, attr = [], [], {"vt": [], "vn": []}
     for line in text.split("\n"):
         head = line[:2]
@@ -99,47 +98,47 @@ def _load_obj_fast(p: Path) -> tuple[np.ndarray, np.ndarray]:
             if key in attr:
                 attr[key].append(line)
             elif key not in _OBJ_SKIP:
-                raise _NotSimple
+                raise NotSimpleObj
     if not v_lines or not f_lines:
-        raise _NotSimple
+        raise NotSimpleObj
     for lines in attr.values():  # meshio parses these and fails (→ another loader) unless one per vertex
         if lines:
             if len(lines) != len(v_lines):
-                raise _NotSimple
+                raise NotSimpleObj
             _float_table(lines)
     V = _float_table(v_lines)
     f_tok = " ".join(f_lines).split()
     if V.shape[1] != 3 or len(f_tok) != 4 * len(f_lines):
-        raise _NotSimple  # 2 or 4+ coordinates, or a face with another number of corners
+        raise NotSimpleObj  # 2 or 4+ coordinates, or a face with another number of corners
     f_tok = np.array(f_tok, dtype=object).reshape(-1, 4)
     if (f_tok[:, 0] != "f").any():
-        raise _NotSimple
+        raise NotSimpleObj
     try:
         corners = f_tok[:, 1:].ravel()
         if "/" in text:
             corners = [c.split("/", 1)[0] for c in corners]
         F = np.array(list(map(int, corners)), dtype=np.int64).reshape(-1, 3)
     except ValueError:
-        raise _NotSimple from None
+        raise NotSimpleObj from None
     if F.min() < 1:
-        raise _NotSimple  # relative (negative) or zero indices: meshio's own handling applies
+        raise NotSimpleObj  # relative (negative) or zero indices: meshio's own handling applies
     return V, F - 1
 
 def _float_table(lines: list[str]) -> np.ndarray:
-    """Lines ``key x y ...`` with the same number of entries → (len(lines), entries) float64, else _NotSimple."""
+    """Lines ``key x y ...`` with the same number of entries → (len(lines), entries) float64, else NotSimpleObj."""
     tok = " ".join(lines).split()
     width = len(lines[0].split())
     if width < 2 or len(tok) != width * len(lines):
-        raise _NotSimple
+        raise NotSimpleObj
     tok = np.array(tok, dtype=object).reshape(-1, width)
     if (tok[:, 0] != tok[0, 0]).any():
-        raise _NotSimple  # the key of each line must start a row: every line has the same width
+        raise NotSimpleObj  # the key of each line must start a row: every line has the same width
     try:
         return np.array(list(map(float, tok[:, 1:].ravel())), dtype=np.float64).reshape(len(lines), width - 1)
     except ValueError:
-        raise _NotSimple from None
+        raise NotSimpleObj from None
 
-def _load_meshio(p: Path) -> tuple[np.ndarray, np.ndarray]:
+def load_meshio(p: Path) -> tuple[np.ndarray, np.ndarray]:
     import meshio
 
     quiet = contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO())

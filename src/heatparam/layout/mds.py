@@ -190,6 +190,14 @@ def _dist(A: np.ndarray, B: np.ndarray) -> np.ndarray:
         out += np.square(A[:, c, None] - B[None, :, c])
     return np.sqrt(out, out=out)
 
+def _cholesky(M: np.ndarray, failure: str):
+    """Dense Cholesky factor of the SPD matrix M (overwritten); HeatparamError("SMACOF: " + failure) if it is not."""
+    try:
+        return sla.cho_factor(M, overwrite_a=True)
+    except np.linalg.LinAlgError:
+        raise HeatparamError(f"SMACOF: {failure}") from None
+
+
 def _ratio(W: np.ndarray | None, Dc: np.ndarray, dist: np.ndarray) -> np.ndarray:
     """r = w d / |z_i − z_j| (0 where the distance is 0 or d is not finite)."""
     return np.divide(Dc if W is None else W * Dc, dist, out=np.zeros_like(dist), where=dist > 0)
@@ -220,10 +228,7 @@ class _AllPairs:
             np.fill_diagonal(Vm, 0.0)
             np.fill_diagonal(Vm, -Vm.sum(axis=1))
             Vm += 1.0 / n
-            try:
-                self.factor = sla.cho_factor(Vm, overwrite_a=True)
-            except np.linalg.LinAlgError:
-                raise HeatparamError("SMACOF: the weighted pairs do not connect all points") from None
+            self.factor = _cholesky(Vm, "the weighted pairs do not connect all points")
 
     def evaluate(self, X: np.ndarray) -> tuple[float, np.ndarray]:
         num = 0.0
@@ -278,10 +283,7 @@ class _Bipartite:
             Wc = Weff[Pc]
             S -= (Wc * self.inv_deg_P[s : s + self.step, None]).T @ Wc
         S += 1.0 / k
-        try:
-            self.factor = sla.cho_factor(S, overwrite_a=True)
-        except np.linalg.LinAlgError:
-            raise HeatparamError("SMACOF: the landmark pairs do not connect all landmarks") from None
+        self.factor = _cholesky(S, "the landmark pairs do not connect all landmarks")
 
     def evaluate(self, X: np.ndarray) -> tuple[float, np.ndarray]:
         XL = X[self.lm]

@@ -74,6 +74,8 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     _check_memory(len(V), len(F), opts)
     flat = flatten(surface, opts, prog)
     sr = seams_stage(surface, opts, prog, flat, flatten)
+    if surface.frame.exponent:  # back to model units (exact: × a power of two)
+        flat, sr = _to_model(flat, surface.frame), sr._replace(flat=_to_model(sr.flat, surface.frame))
     if sr.cut is None:
         uv = np.zeros((len(V), 2))
         uv[comp.keep] = flat.uv
@@ -83,10 +85,15 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
         uv, Fuv, uv_vertex = sr.flat.uv, sr.cut.surface.F, comp.keep[sr.cut.source]
         without = {"refine": flat.method["refine"], "metrics": flat.summary}
     warnings = [*info.warnings, *flat.warnings, *sr.warnings]
-    report = build_report(opts, sr.flat, sr.report, without, info.as_dict(), prog, warnings)
+    report = build_report(opts, sr.flat, sr.report, without, info.as_dict(), prog, warnings, surface.frame)
     for w in report["warnings"]:
         prog.warn(w)
     return Result(uv, report, sr.flat.fill_surface, Fuv, uv_vertex)
+
+
+def _to_model(flat: Flat, frame) -> Flat:
+    """A flattening's layout in model units (its report's lengths are converted in ``report.build_report``)."""
+    return flat._replace(uv=frame.lengths_to_model(flat.uv))
 
 
 def _check_memory(n: int, m: int, opts: Options) -> None:

@@ -39,10 +39,11 @@ class HeatParams(NamedTuple):
     all_pairs_max: int = 3000
     stress_sources: int = 32
     stress: str = "none"
+    unit: float = 1.0  # the surface's internal length unit in model units (``mesh.frame.UnitFrame.unit``)
 
     @classmethod
-    def from_options(cls, opts) -> HeatParams:
-        return cls(*(getattr(opts, f) for f in cls._fields))
+    def from_options(cls, opts, unit: float = 1.0) -> HeatParams:
+        return cls(*(getattr(opts, f) for f in cls._fields[:-1]), unit)
 
 
 class FillSurface(NamedTuple):
@@ -116,7 +117,7 @@ def mds_map(surface: Surface, opts, prog: Progress, fill_used: bool, fill_reason
                 raise
             fill_report.update(used=False, failed=str(exc))
             warnings.append(f"the fill surface failed ({exc}); geodesics computed on the mesh itself")
-    params = HeatParams.from_options(opts)
+    params = HeatParams.from_options(opts, surface.frame.unit)
     if M is not None:
         fill_report.update(M.report)
         warnings += M.warnings
@@ -153,7 +154,7 @@ def geodesic_layout(V: np.ndarray, F: np.ndarray, params: HeatParams, prog: Prog
                 "use geodesics='landmarks' (or 'auto')")
     with prog.stage("operators"):
         op = build_operators(V, F, mass=params.mass)
-    t = heat.time_step(op, params.time_step, params.t_coef)
+    t = heat.time_step(op, params.time_step, params.t_coef, params.unit)
     warning = heat.underflow_warning(op, t) if params.time_step != "default" else None
     with prog.stage("factorize"):
         solver = heat.HeatGeodesics(op, t, backend=params.solver)

@@ -11,6 +11,7 @@ import numpy as np
 
 from heatparam import __version__, metrics
 from heatparam.memory import peak_rss_bytes
+from heatparam.mesh.frame import UnitFrame
 from heatparam.pipeline.heat_stage import FillSurface, Layout
 from heatparam.progress import Progress
 
@@ -80,10 +81,16 @@ class Result(tuple):
 
 
 def build_report(opts, flat: Flat, seams: dict, without_seams: dict | None, mesh_facts: dict, prog: Progress,
-                 warnings: list[str]) -> dict:
+                 warnings: list[str], frame: UnitFrame) -> dict:
     """The whole report: parameters, method (with the seams part), mesh facts, metrics, timings, machine,
-    warnings (a last one when the map is not bijective)."""
+    warnings (a last one when the map is not bijective). Lengths and areas in model units (``frame``: the
+    surface's unit frame, whose internal units the stages reported in)."""
     summary, layout = flat.summary, flat.layout
+    if frame.exponent:
+        summary, mesh_facts, seams = _model_units(frame, summary, mesh_facts, seams)
+        flat = flat._replace(method=_method_in_model_units(frame, flat.method))
+        if without_seams is not None:
+            without_seams = {**without_seams, "metrics": _model_units(frame, without_seams["metrics"], {}, {})[0]}
     if summary["flips"] or summary["boundary_crossings"]:
         warnings = [*warnings, f"the map is not bijective: {summary['flips']} flipped triangles, "
                                f"{summary['boundary_crossings']} boundary crossings"]
@@ -92,7 +99,7 @@ def build_report(opts, flat: Flat, seams: dict, without_seams: dict | None, mesh
         method["without_seams"] = without_seams
     return {
         "heatparam_version": __version__,
-        "parameters": {**asdict(opts), "time_step_value": layout.t if layout else None,
+        "parameters": {**asdict(opts), "time_step_value": frame.areas_to_model(layout.t) if layout else None,
                        "landmarks_used": layout.k if layout else None},
         "method": method,
         "mesh": mesh_facts,
@@ -102,3 +109,36 @@ def build_report(opts, flat: Flat, seams: dict, without_seams: dict | None, mesh
         "machine": {"python": platform.python_version(), "platform": platform.platform()},
         "warnings": warnings,
     }
+
+
+#: report fields that are lengths / areas, per part (converted from internal to model units)
+_LENGTHS = {"mesh": ("mean_edge_length", "max_edge_length", "bbox_diagonal"), "seams": ("length", "longest"),
+            "fill": ("distance_max", "distance_mean")}
+_AREAS = {"mesh": ("area",), "metrics": ("total_area_3d", "total_area_uv")}
+
+
+def _model_units(frame: UnitFrame, summary: dict, mesh_facts: dict, seams: dict) -> tuple[dict, dict, dict]:
+    """The metrics, mesh facts and seams report parts in model units."""
+    def conv(d: dict, part: str) -> dict:
+        out = dict(d)
+        for k in _LENGTHS.get(part, ()):
+            if out.get(k) is not None:
+                out[k] = frame.lengths_to_model(out[k])
+        for k in _AREAS.get(part, ()):
+            if out.get(k) is not None:
+                out[k] = frame.areas_to_model(out[k])
+        return out
+
+    return conv(summary, "metrics"), conv(mesh_facts, "mesh"), conv(seams, "seams")
+
+
+def _method_in_model_units(frame: UnitFrame, method: dict) -> dict:
+    out = dict(method)
+    if out.get("mollified_edge_length") is not None:
+        out["mollified_edge_length"] = frame.lengths_to_model(out["mollified_edge_length"])
+    fill = dict(out.get("fill") or {})
+    for k in _LENGTHS["fill"]:
+        if fill.get(k) is not None:
+            fill[k] = frame.lengths_to_model(fill[k])
+    out["fill"] = fill
+    return out

@@ -8,30 +8,40 @@ import functools
 
 import numpy as np
 
+from heatparam.mesh.frame import UnitFrame, unit_frame
 from heatparam.mesh.topology import Compaction, compact
-from heatparam.mesh.validate import MeshInfo, validate_mesh
+from heatparam.mesh.validate import MeshInfo, check_arrays, validate_mesh
 
 
 class Surface:
-    """A validated disk (V (n,3), F (m,3)) whose vertices are all referenced, and its :class:`MeshInfo`.
+    """A validated disk (V (n,3), F (m,3)) whose vertices are all referenced, and its :class:`MeshInfo`, in the
+    internal units of its :class:`~heatparam.mesh.frame.UnitFrame` (the input's own, except for extreme sizes).
 
     ``conformal()`` (the free-boundary LSCM layout scaled to the 3D area, read-only) and ``gradients()`` (the
     refinement's hat gradients and areas) are computed at most once and shared by the fill decision, the start
     checks and the refinement.
     """
 
-    def __init__(self, V: np.ndarray, F: np.ndarray, info: MeshInfo):
+    def __init__(self, V: np.ndarray, F: np.ndarray, info: MeshInfo, frame: UnitFrame | None = None):
         self.V, self.F, self.info = V, F, info
+        self.frame = frame if frame is not None else UnitFrame(0, np.zeros(3))
 
     @classmethod
     def validated(cls, V: np.ndarray, F: np.ndarray) -> tuple[Surface, Compaction, MeshInfo]:
-        """Validate the input (``mesh.validate_mesh``) and drop its unreferenced vertices: (surface, the
-        compaction that maps input ids to the surface's, the input's MeshInfo)."""
-        info = validate_mesh(V, F)
+        """Validate the input (``mesh.validate_mesh``, in the unit frame ``mesh.frame.unit_frame``) and drop its
+        unreferenced vertices: (surface, the compaction that maps input ids to the surface's, the input's
+        MeshInfo in internal units)."""
+        V, F = check_arrays(V, F)
+        used = np.zeros(len(V), dtype=bool)
+        used[F.ravel()] = True
+        frame = unit_frame(V[used])
+        info = validate_mesh(frame.to_unit(V) if frame.exponent or frame.offset.any() else V, F)
         comp = compact(info.referenced)
         own = dataclasses.replace(info, referenced=np.ones(len(comp.keep), dtype=bool), warnings=[],
                                   boundary_loops=[comp.remap[lp] for lp in info.boundary_loops])
-        return cls(V[comp.keep], comp.faces(F), own), comp, info
+        Vs = V[comp.keep]
+        return cls(frame.to_unit(Vs) if frame.exponent or frame.offset.any() else Vs, comp.faces(F), own,
+                   frame), comp, info
 
     @functools.cache  # noqa: B019 - one Surface per flattening; the cache lives exactly as long as it
     def conformal(self) -> np.ndarray:

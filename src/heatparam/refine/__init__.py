@@ -60,7 +60,7 @@ class RefineParams(NamedTuple):
         return cls(opts.solver, int(opts.refine_iters), float(opts.refine_tol), int(opts.refine_multilevel))
 
 
-def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefineParams = RefineParams(),
+def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefineParams | None = None,
            progress=None, conformal: Callable[[], np.ndarray] | None = None, lscm: LscmStart | None = None,
            surface: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, dict]:
     """Make the layout ``uv`` (n,2) of (V (n,3), F (m,3)) bijective and near-isometric (true scale).
@@ -88,6 +88,7 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefinePa
     (True, 'lscm')
     """
     t0 = time.perf_counter()
+    params = RefineParams() if params is None else params
     disk = build_disk(V, F)
     loops = disk.loops
     g, area = surface if surface is not None else surface_gradients(V, F)

@@ -15,7 +15,6 @@ from heatparam.refine.energy import det, jacobians, normalized_energy, surface_g
 from heatparam.refine.newton import polish
 from heatparam.refine.scaffold import loop_edges, loop_ranges
 
-
 COARSE_FRACTION = 1 / 8  # each coarser level has about this fraction of the vertices (camelhead↑727k: at 1/27 the
 #                          repair of the prolongation's flips failed, at 1/6.5 it needed 7 rounds) ...
 

@@ -1,5 +1,12 @@
 """Projected Newton on the symmetric Dirichlet energy plus the scaffold's, from a bijective layout.
 
+The scaffold (``scaffold.build_scaffold``) is rebuilt around the current layout at every iteration and measured
+against its own shape at its start (Jiang et al. 2017); each scaffold triangle weighs up to ``SCAFFOLD_WEIGHT`` ×
+the mean surface face, relaxed by ``SCAFFOLD_ADAPT`` after every uncut step. The line search (:func:`_line_search`)
+starts at 0.9 × the largest step for which no surface or scaffold triangle flips (Smith & Schaefer 2015). Converged
+when an uncut step (≥ half the Newton step) lowers the surface energy by less than ``tol`` of it; the polish gives
+up after ``STALL_ITERS`` barrier-limited steps in a row that gain less.
+
 The Hessian's sparsity pattern is built once (:class:`HessianPattern`); directions are solved with a reused
 factorization (:func:`newton_direction`); the line search is bounded by the flip barrier (``energy.max_step``).
 """
@@ -23,7 +30,6 @@ from heatparam.refine.scaffold import (
     scaffold_matrix,
 )
 from heatparam.solvers import Factor, large_system_backend
-
 
 DECREMENT_TOL = 1e-3  # converged at once when the Newton decrement predicts less than this × tol relative decrease
 
@@ -164,18 +170,10 @@ def _line_search(J: np.ndarray, D: np.ndarray, w_surf: np.ndarray, sy: _System, 
 def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray], *,
            max_iters: int = 200, tol: float = 1e-6, backend: str = "auto", bar=None,
            guards: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
-    """Minimize the symmetric Dirichlet energy Σ A_f Ψ(J_f) from a bijective layout ``uv`` (n,2), keeping it bijective.
-
-    Projected Newton on the surface energy plus a scaffold energy (:func:`build_scaffold`, rebuilt around the
-    current layout at every iteration and measured against its own shape at its start, Jiang et al. 2017; each
-    scaffold triangle weighs up to ``SCAFFOLD_WEIGHT`` × the mean surface face, relaxed by ``SCAFFOLD_ADAPT``
-    after every uncut step). The line search (:func:`_line_search`) starts at 0.9 × the largest step for which no
-    surface or scaffold triangle flips (Smith & Schaefer 2015). Converged when an uncut step (≥ half the Newton
-    step) lowers the surface energy by less than ``tol`` of it; gives up after ``STALL_ITERS`` barrier-limited
-    steps in a row that gain less. g (m,3,2): hat gradients of the rest triangles; area (m,): their areas; loops:
-    boundary loops, outer first; guards (k,3): extra triangles, positive in ``uv``, that carry no energy but stay
-    positive like the others (a finer level's triangles whose three corners all lie on the boundary: see
-    ``multilevel.coarse_to_fine``). Returns the layout (n,2) and a JSON-able report.
+    """Minimize the symmetric Dirichlet energy Σ A_f Ψ(J_f) from a bijective layout ``uv`` (n,2), keeping it bijective
+    (the scheme: module docstring). g (m,3,2): hat gradients of the rest triangles; area (m,): their areas; loops:
+    boundary loops, outer first; guards (k,3): extra triangles, positive in ``uv``, without energy but kept
+    positive like the others (``multilevel.coarse_to_fine``). Returns the layout (n,2) and a JSON-able report.
     """
     t0 = time.perf_counter()
     n = len(uv)
@@ -247,9 +245,7 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
         # a stiff scaffold keeps boundaries apart while they move a lot, but it acts like a proximal term on
         # boundary vertices (thin scaffold triangles): relax it while Newton steps go through uncut
         w_scaf = max(w_scaf / SCAFFOLD_ADAPT, w_min) if t >= full_step else min(w_scaf * SCAFFOLD_ADAPT, w_max)
-    info = {"iterations": it, "converged": converged, "stop": stop,
-            "energy_start": float(hist[0] / 4 if hist else np.nan),
-            "energy_end": float(hist[-1] / 4 if hist else np.nan), "factorizations": refactorizations,
-            "backend": backend,
-            "seconds": round(time.perf_counter() - t0, 3)}
-    return x, info
+    return x, {"iterations": it, "converged": converged, "stop": stop,
+               "energy_start": float(hist[0] / 4 if hist else np.nan),
+               "energy_end": float(hist[-1] / 4 if hist else np.nan), "factorizations": refactorizations,
+               "backend": backend, "seconds": round(time.perf_counter() - t0, 3)}

@@ -14,7 +14,6 @@ import scipy.sparse as sp
 
 from heatparam.mesh.planar import triangulate
 
-
 SCAFFOLD_WEIGHT = 1e-2  # largest energy weight of one scaffold triangle, relative to the mean surface face's
 
 SCAFFOLD_ADAPT = 2.0  # after an uncut Newton step the scaffold weight is divided by this, after a cut one multiplied
@@ -51,7 +50,10 @@ def build_scaffold(uv: np.ndarray, loops: list[np.ndarray]) -> Scaffold:
     c, r = 0.5 * (lo + hi), (0.5 + SCAFFOLD_MARGIN) * float((hi - lo).max())
     box = c + r * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
     E = np.vstack([loop_edges(loop_ranges(loops)), len(ids) + np.array([[0, 1], [1, 2], [2, 3], [3, 0]])])
-    P2, T = triangulate(np.vstack([P, box]), E)
+    try:
+        P2, T = triangulate(np.vstack([P, box]), E)
+    except ValueError as exc:
+        raise ValueError(f"cannot triangulate the scaffold (boundary loops touch or cross): {exc}") from None
     if len(P2) != len(ids) + 4:
         raise ValueError("the scaffold triangulation added vertices (boundary loops touch or cross)")
     glob = np.concatenate([ids, len(uv) + np.arange(4)])

@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 from scipy.sparse.csgraph import dijkstra
 
-from heatparam import metrics, shapes
-from heatparam.mesh import cut_open, edge_graph, hole_seams, validate_mesh
+from heatparam import datasets
+from heatparam.mesh import boundary_loops, cut_open, edge_graph, hole_seams, validate_mesh
 from heatparam.operators import edge_lengths
 
 
 @pytest.fixture(scope="module")
 def holes():
-    s = shapes.cylinder_with_holes()
+    s = datasets.cylinder_with_holes()
     return s, validate_mesh(s.V, s.F)
 
 
@@ -74,11 +74,11 @@ def test_cut_open_leaves_a_disk(holes):
     border = sum(np.linalg.norm(Vs[lp] - Vs[np.roll(lp, -1)], axis=1).sum() for lp in cut.boundary_loops)
     before = sum(np.linalg.norm(s.V[lp] - s.V[np.roll(lp, -1)], axis=1).sum() for lp in info.boundary_loops)
     assert border == pytest.approx(before + 2 * seam_len, rel=1e-12)
-    assert metrics.boundary_loops(Fs)[0].size == cut.boundary_loops[0].size
+    assert boundary_loops(Fs)[0].size == cut.boundary_loops[0].size
 
 
 def test_no_holes_no_seams():
-    s = shapes.cylinder_patch()
+    s = datasets.cylinder_patch()
     info = validate_mesh(s.V, s.F)
     assert hole_seams(s.V, s.F, info.boundary_loops) == []
     Vs, Fs, src = cut_open(s.V, s.F, [])

@@ -1,4 +1,4 @@
-"""Tests for heatparam.shapes: valid manifold meshes with exact flat layouts, and the layout-error measure."""
+"""Tests for heatparam.datasets: valid manifold meshes with exact flat layouts, and the layout-error measure."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from matplotlib.path import Path
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull
 
-from heatparam import shapes as S
+from heatparam import datasets as S
 
 DEFAULT_H = {
     "cylinder_patch": 0.04,
@@ -41,7 +41,7 @@ DEVELOPABLE = [n for n in S.SHAPES if n != "curved_cap_with_holes"]
 
 
 @pytest.fixture(scope="module")
-def shapes() -> dict[str, S.Shape]:
+def datasets() -> dict[str, S.Shape]:
     return {name: gen() for name, gen in S.SHAPES.items()}
 
 
@@ -70,15 +70,15 @@ def angles_deg(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
     return np.stack(out, axis=1)
 
 
-def test_registry_names(shapes):
+def test_registry_names(datasets):
     assert set(S.SHAPES) == set(N_LOOPS)
-    for name, sh in shapes.items():
+    for name, sh in datasets.items():
         assert sh.name == name
 
 
 @pytest.mark.parametrize("name", list(S.SHAPES))
-def test_arrays_and_size(shapes, name):
-    sh = shapes[name]
+def test_arrays_and_size(datasets, name):
+    sh = datasets[name]
     assert sh.V.dtype == np.float64 and sh.V.ndim == 2 and sh.V.shape[1] == 3
     assert sh.F.dtype == np.int64 and sh.F.ndim == 2 and sh.F.shape[1] == 3
     if name == "curved_cap_with_holes":
@@ -92,8 +92,8 @@ def test_arrays_and_size(shapes, name):
 
 
 @pytest.mark.parametrize("name", list(S.SHAPES))
-def test_manifold_single_component(shapes, name):
-    sh = shapes[name]
+def test_manifold_single_component(datasets, name):
+    sh = datasets[name]
     V, F = sh.V, sh.F
     assert igl.is_edge_manifold(F)[0]
     assert np.all(igl.is_vertex_manifold(F))
@@ -112,8 +112,8 @@ def test_manifold_single_component(shapes, name):
 
 
 @pytest.mark.parametrize("name", list(S.SHAPES))
-def test_flat_layout_quality(shapes, name):
-    sh = shapes[name]
+def test_flat_layout_quality(datasets, name):
+    sh = datasets[name]
     uv, h = flat(sh), DEFAULT_H[name]
     sa = signed_areas(uv, sh.F)
     assert sa.min() > 0.05 * h * h, "every triangle counter-clockwise, no slivers"
@@ -128,8 +128,8 @@ def test_flat_layout_quality(shapes, name):
 
 
 @pytest.mark.parametrize("name", list(S.SHAPES))
-def test_3d_normals_outward(shapes, name):
-    sh = shapes[name]
+def test_3d_normals_outward(datasets, name):
+    sh = datasets[name]
     P = sh.V[sh.F]
     N = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
     c = P.mean(axis=1)
@@ -158,8 +158,8 @@ def pair_distance_3d(name: str, uv: np.ndarray, i: np.ndarray, j: np.ndarray) ->
 
 
 @pytest.mark.parametrize("name", DEVELOPABLE)
-def test_bending_is_exact_isometry_up_to_chords(shapes, name):
-    sh = shapes[name]
+def test_bending_is_exact_isometry_up_to_chords(datasets, name):
+    sh = datasets[name]
     uv = sh.uv_true
     E = edges(sh.F)
     rng = np.random.default_rng(0)
@@ -187,20 +187,20 @@ def numerical_metric(f, uv: np.ndarray, eps: float = 1e-6) -> np.ndarray:
     return np.einsum("nki,nkj->nij", J, J)
 
 
-def test_bending_maps_have_identity_metric(shapes):
+def test_bending_maps_have_identity_metric(datasets):
     eye = np.broadcast_to(np.eye(2), (200, 2, 2))
-    uv = shapes["cylinder_with_holes"].uv_true[::10][:200]
+    uv = datasets["cylinder_with_holes"].uv_true[::10][:200]
     np.testing.assert_allclose(numerical_metric(lambda p: S.bend_cylinder(p, 0.7), uv), eye, atol=1e-8)
-    uv = shapes["cone_s_strip"].uv_true[::9][:200]
+    uv = datasets["cone_s_strip"].uv_true[::9][:200]
     for alpha in (0.5, np.pi, 5.0):
         np.testing.assert_allclose(numerical_metric(lambda p, a=alpha: S.wrap_cone(p, a), uv), eye, atol=1e-8)
     # the sphere lift is not an isometry: the same test must fail for it
-    uv = shapes["flat_disk"].uv_true[::10][:200] * 0.9
+    uv = datasets["flat_disk"].uv_true[::10][:200] * 0.9
     assert np.abs(numerical_metric(lambda p: S.lift_sphere(p, 2.0), uv) - eye).max() > 0.05
 
 
-def test_cone_s_strip_geometry(shapes):
-    sh = shapes["cone_s_strip"]
+def test_cone_s_strip_geometry(datasets):
+    sh = datasets["cone_s_strip"]
     uv = sh.uv_true
     assert uv[:, 0].min() > 0.5  # apex (origin) well outside the domain
     assert np.ptp(np.arctan2(uv[:, 1], uv[:, 0])) < np.pi  # within the developed sector
@@ -217,14 +217,14 @@ def test_cone_s_strip_geometry(shapes):
     assert not path.contains_points(seg).all()
 
 
-def test_flat_shapes_are_planar(shapes):
+def test_flat_shapes_are_planar(datasets):
     for name in ("flat_disk", "flat_square"):
-        sh = shapes[name]
+        sh = datasets[name]
         assert np.array_equal(sh.V[:, :2], sh.uv_true) and np.all(sh.V[:, 2] == 0)
 
 
-def test_cap_is_curved(shapes):
-    sh = shapes["curved_cap_with_holes"]
+def test_cap_is_curved(datasets):
+    sh = datasets["curved_cap_with_holes"]
     r2 = np.sum(sh.V[:, :2] ** 2, axis=1)
     np.testing.assert_allclose(np.sum((sh.V - [0, 0, -4.0]) ** 2, axis=1), 16.0, rtol=1e-12)
     assert np.ptp(sh.V[:, 2]) > 0.05 and r2.max() < 1.0 + 1e-12
@@ -248,7 +248,7 @@ def test_other_resolutions_valid(name, h):
 
 def test_mesh_domain_boundary_segments_are_edges():
     h = 0.1
-    outer = S._polygon(np.array([[0, 0], [2, 0], [2, 1], [0, 1]]), h)
+    outer = S.polygon(np.array([[0, 0], [2, 0], [2, 1], [0, 1]]), h)
     hole = S._circle((1.0, 0.5), 0.25, h, clockwise=True)
     uv, F = S.mesh_domain([outer, hole], h)
     index = {tuple(p): k for k, p in enumerate(uv.tolist())}
@@ -263,7 +263,7 @@ def test_mesh_domain_recovers_thin_notch():
     # a 3.6-degree V notch: Delaunay alone misses border segments, splitting them must recover them
     h = 0.05
     corners = np.array([[0, 0], [1, 0], [1.0, 0.8], [1.05, 0], [2, 0], [2, 1], [0, 1]], dtype=float)
-    outer = S._polygon(corners, h)
+    outer = S.polygon(corners, h)
     with pytest.raises(RuntimeError, match="boundary segments"):
         S.mesh_domain([outer], h, max_refine=0)
     uv, F = S.mesh_domain([outer], h)
@@ -276,8 +276,8 @@ def test_mesh_domain_recovers_thin_notch():
     assert np.linalg.norm(uv[lp] - uv[np.roll(lp, -1)], axis=1).sum() == pytest.approx(perimeter, rel=1e-12)
 
 
-def test_layout_error_rigid_and_scale(shapes):
-    uv = shapes["cone_s_strip"].uv_true
+def test_layout_error_rigid_and_scale(datasets):
+    uv = datasets["cone_s_strip"].uv_true
     th = 0.7
     R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
     moved = uv @ R.T + np.array([3.0, -2.0])
@@ -305,12 +305,12 @@ def test_diameter_matches_brute_force():
         assert S.diameter(X) == pytest.approx(brute, rel=1e-12)
 
 
-def test_scale_shape(shapes):
-    sh = shapes["cylinder_patch"]
+def test_scale_shape(datasets):
+    sh = datasets["cylinder_patch"]
     big = S.scale_shape(sh, 2.5)
     np.testing.assert_array_equal(big.V, 2.5 * sh.V)
     np.testing.assert_array_equal(big.uv_true, 2.5 * sh.uv_true)
     assert np.array_equal(big.F, sh.F) and big.name == sh.name
     assert S.layout_error(big.uv_true, sh.uv_true) > 0.1
-    cap = S.scale_shape(shapes["curved_cap_with_holes"], 0.5)
-    assert cap.uv_true is None and np.array_equal(cap.V, 0.5 * shapes["curved_cap_with_holes"].V)
+    cap = S.scale_shape(datasets["curved_cap_with_holes"], 0.5)
+    assert cap.uv_true is None and np.array_equal(cap.V, 0.5 * datasets["curved_cap_with_holes"].V)

@@ -2,15 +2,16 @@ import numpy as np
 import pytest
 import trimesh
 
-from heatparam import io, shapes
+from heatparam import datasets, formats
 from heatparam.errors import HeatparamError
+from heatparam.formats import meshes
 
 from conftest import shared_mesh
 
 
 @pytest.fixture(scope="module")
 def mesh():
-    sh = shapes.cylinder_patch(h=0.1)
+    sh = datasets.cylinder_patch(h=0.1)
     return sh.V, sh.F
 
 
@@ -19,7 +20,7 @@ def test_formats_keep_vertex_order(tmp_path, mesh, suffix):
     V, F = mesh
     p = tmp_path / f"m{suffix}"
     trimesh.Trimesh(V, F, process=False).export(p)
-    V2, F2 = io.load_mesh(p)
+    V2, F2 = formats.load_mesh(p)
     tol = 1e-6 if suffix in (".ply", ".glb", ".stl") else 1e-9  # float32 / trimesh's OFF text precision
     assert V2.shape == V.shape
     if suffix == ".stl":  # STL has no shared vertices: corners are merged, numbered in order of appearance
@@ -32,10 +33,10 @@ def test_obj_round_trip_exact(tmp_path, mesh):
     V, F = mesh
     uv = V[:, :2] * 1.5
     p = tmp_path / "m.obj"
-    io.save_uv_obj(p, V, F, uv)
-    V2, F2 = io.load_mesh(p)
+    formats.save_uv_obj(p, V, F, uv)
+    V2, F2 = formats.load_mesh(p)
     assert np.array_equal(V2, V) and np.array_equal(F2, F)  # bit-exact (repr round trip)
-    V3, F3, UV, FUV = io.load_uv_obj(p)
+    V3, F3, UV, FUV = formats.load_uv_obj(p)
     assert np.array_equal(UV, uv) and np.array_equal(FUV, F)
 
 
@@ -45,8 +46,8 @@ def test_obj_with_seams_round_trip(tmp_path, mesh):
     Fuv = np.arange(F.size).reshape(F.shape)[::-1].copy()  # one vt per corner, in another order
     uv = np.random.default_rng(0).random((F.size, 2))
     p = tmp_path / "s.obj"
-    io.save_uv_obj(p, V, F, uv, Fuv=Fuv)
-    V2, F2, UV, FUV = io.load_uv_obj(p)
+    formats.save_uv_obj(p, V, F, uv, Fuv=Fuv)
+    V2, F2, UV, FUV = formats.load_uv_obj(p)
     assert np.array_equal(V2, V) and np.array_equal(F2, F)
     assert np.array_equal(UV, uv) and np.array_equal(FUV, Fuv)
 
@@ -54,23 +55,23 @@ def test_obj_with_seams_round_trip(tmp_path, mesh):
 def test_quads_and_polygons_triangulated(tmp_path):
     p = tmp_path / "q.obj"
     p.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\nv 2 1 0\nf 1 2 3 4\nf 2 5 6 3\n")
-    V, F = io.load_mesh(p)
+    V, F = formats.load_mesh(p)
     assert len(V) == 6 and F.shape == (4, 3)
     off = tmp_path / "q.off"
     off.write_text("OFF\n5 1 0\n0 0 0\n1 0 0\n1.5 1 0\n0.5 1.5 0\n-0.5 1 0\n5 0 1 2 3 4\n")
-    V, F = io.load_mesh(off)
+    V, F = formats.load_mesh(off)
     assert len(V) == 5 and F.shape == (3, 3)
 
 
 def test_public_quad_off_loads():
-    V, F = io.load_mesh(shared_mesh("halftunnel.off"))  # its faces are quads
+    V, F = formats.load_mesh(shared_mesh("halftunnel.off"))  # its faces are quads
     assert V.shape == (831, 3) and F.shape == (1568, 3)
 
 
 def test_atomic_write_keeps_old_file_on_failure(tmp_path):
     p = tmp_path / "out.json"
     p.write_text("old")
-    with pytest.raises(RuntimeError), io.atomic_write(p) as fh:
+    with pytest.raises(RuntimeError), formats.atomic_write(p) as fh:
         fh.write("half")
         raise RuntimeError("boom")
     assert p.read_text() == "old" and len(list(tmp_path.iterdir())) == 1
@@ -78,14 +79,14 @@ def test_atomic_write_keeps_old_file_on_failure(tmp_path):
 
 def test_missing_folder_is_one_line_error(tmp_path):
     with pytest.raises(HeatparamError, match="does not exist"):
-        io.save_json(tmp_path / "nope" / "r.json", {})
+        formats.save_json(tmp_path / "nope" / "r.json", {})
 
 
 def test_uv_obj_without_vt_rejected(tmp_path):
     p = tmp_path / "novt.obj"
     p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     with pytest.raises(HeatparamError, match="texture"):
-        io.load_uv_obj(p)
+        formats.load_uv_obj(p)
 
 
 @pytest.mark.parametrize("body", [
@@ -97,8 +98,8 @@ def test_uv_obj_without_vt_rejected(tmp_path):
 def test_plain_obj_fast_path_equals_meshio(tmp_path, body):
     p = tmp_path / "m.obj"
     p.write_text(body)
-    V1, F1 = io._load_obj_fast(p)
-    V2, F2 = io._load_meshio(p)
+    V1, F1 = meshes.load_obj_fast(p)
+    V2, F2 = meshes.load_meshio(p)
     assert V1.dtype == V2.dtype and F1.dtype == F2.dtype
     assert np.array_equal(V1, V2) and np.array_equal(F1, F2)
 
@@ -114,8 +115,8 @@ def test_plain_obj_fast_path_equals_meshio(tmp_path, body):
 def test_other_objs_left_to_meshio(tmp_path, body):
     p = tmp_path / "m.obj"
     p.write_text(body)
-    with pytest.raises(io._NotSimple):
-        io._load_obj_fast(p)
+    with pytest.raises(meshes.NotSimpleObj):
+        meshes.load_obj_fast(p)
 
 
 def test_large_obj_fast_path_exact(tmp_path):
@@ -123,7 +124,7 @@ def test_large_obj_fast_path_exact(tmp_path):
     V = rng.standard_normal((500, 3)) * 10.0 ** rng.integers(-8, 8, (500, 1))
     F = rng.integers(0, 500, (900, 3))
     p = tmp_path / "m.obj"
-    io.save_uv_obj(p, V, F, rng.random((500, 2)))
-    V2, F2 = io.load_mesh(p)
+    formats.save_uv_obj(p, V, F, rng.random((500, 2)))
+    V2, F2 = formats.load_mesh(p)
     assert np.array_equal(V2, V) and np.array_equal(F2, F)
-    assert np.array_equal(V2, io._load_meshio(p)[0]) and np.array_equal(F2, io._load_meshio(p)[1])
+    assert np.array_equal(V2, meshes.load_meshio(p)[0]) and np.array_equal(F2, meshes.load_meshio(p)[1])

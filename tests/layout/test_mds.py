@@ -1,9 +1,11 @@
 import numpy as np
 import pytest
 
-from heatparam import memory, shapes
+from heatparam import datasets, memory
 from heatparam.errors import ResourceError
-from heatparam.mds import classical_mds, landmark_mds, orient_layout, smacof
+from heatparam.layout.conformal import orient_layout
+from heatparam.layout.mds import classical_mds, landmark_mds, smacof
+from heatparam.mesh import boundary_loops
 
 
 def _procrustes_err(X, Y):
@@ -65,10 +67,10 @@ def test_orient_layout_mirrors_clockwise():
 @pytest.fixture(scope="module")
 def cyl_geodesics():
     """A coarse cylinder patch (developable), its all-pairs heat distances and its classical MDS layout."""
-    from heatparam import heat, shapes
+    from heatparam import datasets, heat
     from heatparam.operators import build_operators
 
-    sh = shapes.cylinder_patch(h=0.08)
+    sh = datasets.cylinder_patch(h=0.08)
     op = build_operators(sh.V, sh.F)
     D = heat.all_pairs(heat.HeatGeodesics(op, heat.time_step(op)))
     return sh, D, classical_mds(D)
@@ -81,7 +83,7 @@ def _rel_stress(X, D):
 
 
 def test_smacof_monotone_from_mds_on_developable_surface(cyl_geodesics):
-    from heatparam import shapes
+    from heatparam import datasets
 
     sh, D, X0 = cyl_geodesics
     X, info = smacof(X0, D, iters=300, tol=1e-9)
@@ -92,7 +94,7 @@ def test_smacof_monotone_from_mds_on_developable_surface(cyl_geodesics):
     assert info["stress_end"] == pytest.approx(_rel_stress(X, D), rel=1e-9)
     assert info["stress_end"] < 0.8 * info["stress_start"]  # MDS minimizes strain, not stress: room to gain
     # Lower stress against heat distances also means a layout closer to the true flat one here.
-    assert shapes.layout_error(X, sh.uv_true) < shapes.layout_error(X0, sh.uv_true)
+    assert datasets.layout_error(X, sh.uv_true) < datasets.layout_error(X0, sh.uv_true)
     assert np.allclose(X.mean(axis=0), 0, atol=1e-12)  # the constraint of Eq. 1
     X2, _ = smacof(X0, D, iters=300, tol=1e-9)
     assert np.array_equal(X, X2)  # deterministic
@@ -139,7 +141,7 @@ def test_smacof_landmarks_agrees_with_all_pairs_on_surface(cyl_geodesics):
     one, but both fit the same nearly-Euclidean heat distances of a developable patch: each lies within ~1% of
     the diameter of the true flat layout (heat-distance error), hence within 2% of each other. A wrong Schur
     solve or a missing half of B(Z) gives a layout off by tens of percent or a rising stress."""
-    from heatparam import shapes
+    from heatparam import datasets
 
     sh, D, X0 = cyl_geodesics
     lm = np.linspace(0, len(D) - 1, 30).astype(np.int64)
@@ -149,7 +151,7 @@ def test_smacof_landmarks_agrees_with_all_pairs_on_surface(cyl_geodesics):
     assert Xl.shape == (len(D), 2) and il["pattern"] == "landmarks" and il["pairs"] == len(D) * 30 - 30
     assert np.all(np.diff(il["history"]) <= 1e-12 * il["history"][0])
     assert il["stress_end"] < 0.8 * il["stress_start"]
-    diam = shapes.diameter(sh.uv_true)
+    diam = datasets.diameter(sh.uv_true)
     assert _procrustes_err(Xl, Xa) < 0.02 * diam
     assert _rel_stress(Xl, D) < _rel_stress(XL0, D)  # also lower on all pairs than its landmark-MDS start
 
@@ -181,12 +183,12 @@ def test_smacof_rejects_bad_shapes():
 def test_stress_option_reaches_report_and_cli(tmp_path):
     import json
 
-    from heatparam import shapes
+    from heatparam import datasets
     from heatparam.cli import main
     from heatparam.errors import HeatparamError
     from heatparam.pipeline import parameterize
 
-    sh = shapes.cylinder_with_holes(h=0.1)  # holes and a notch: the fill path has something to fill
+    sh = datasets.cylinder_with_holes(h=0.1)  # holes and a notch: the fill path has something to fill
     uv0, r0 = parameterize(sh.V, sh.F, fill="none", refine="none")
     uv1, r1 = parameterize(sh.V, sh.F, fill="none", refine="none", stress="smacof")
     assert r0["method"]["stress"] == {"method": "none"} and r0["parameters"]["stress"] == "none"
@@ -219,10 +221,10 @@ def test_lscm_matches_libigl(name):
     """Our LSCM (used with PARDISO on large meshes) is libigl's map: same energy, same pins, holes included."""
     import igl
 
-    from heatparam import mds, metrics
+    from heatparam.layout import conformal as mds
 
-    s = getattr(shapes, name)()
-    loops = metrics.boundary_loops(s.F)
+    s = getattr(datasets, name)()
+    loops = boundary_loops(s.F)
     outer = loops[int(np.argmax([len(lp) for lp in loops]))]
     pins, pin_uv = np.array([outer[0], outer[len(outer) // 2]]), np.array([[0.0, 0.0], [1.0, 0.0]])
     ours = mds.lscm(s.V, s.F, pins, pin_uv)

@@ -1,14 +1,14 @@
 import numpy as np
 import pytest
 
-from heatparam import refine, shapes
+from heatparam import datasets, options
 from heatparam.errors import HeatparamError
 from heatparam.pipeline import Options, parameterize
 
 
 @pytest.fixture(scope="module")
 def cylinder():
-    return shapes.cylinder_patch()
+    return datasets.cylinder_patch()
 
 
 def test_convex_developable_patch_true_scale(cylinder):
@@ -17,7 +17,7 @@ def test_convex_developable_patch_true_scale(cylinder):
     m = rep["metrics"]
     assert m["flips"] == 0 and m["boundary_crossings"] == 0
     assert m["iso_mean"] <= 1.10
-    err = shapes.layout_error(uv, cylinder.uv_true)  # rigid motion only: a wrong scale fails this
+    err = datasets.layout_error(uv, cylinder.uv_true)  # rigid motion only: a wrong scale fails this
     print(f"cylinder raw MDS: iso {m['iso_mean']:.4f}, layout error {err:.4f}, uv_scale {m['uv_scale']:.4f}")
     assert err <= 0.02
     assert rep["method"]["geodesics"] == "all-pairs"
@@ -40,15 +40,15 @@ def test_scale_invariance_default_vs_paper(cylinder):
         return uv
 
     uv1, uv2 = run(cylinder.V, "default"), run(1000 * cylinder.V, "default")
-    assert shapes.layout_error(uv2 / 1000, uv1) < 1e-6
+    assert datasets.layout_error(uv2 / 1000, uv1) < 1e-6
     p1, p2 = run(cylinder.V, "paper"), run(1000 * cylinder.V, "paper")
-    diff = shapes.layout_error(p2 / 1000, p1)
+    diff = datasets.layout_error(p2 / 1000, p1)
     print(f"paper time step: scaled-map difference {diff:.4f} of the diameter")
     assert diff > 1e-3
 
 
 def test_deterministic_with_seed():
-    sh = shapes.flat_square()
+    sh = datasets.flat_square()
     a, _ = parameterize(sh.V, sh.F, geodesics="landmarks", seed=5, refine="none", fill="none")
     b, _ = parameterize(sh.V, sh.F, geodesics="landmarks", seed=5, refine="none", fill="none")
     assert np.array_equal(a, b)
@@ -86,7 +86,7 @@ def test_bad_options_rejected(cylinder):
 
 def test_default_pipeline_deterministic():
     """Fill, landmarks and refinement with the same seed: bit-identical output."""
-    sh = shapes.cylinder_with_holes(h=0.09)
+    sh = datasets.cylinder_with_holes(h=0.09)
     a, ra = parameterize(sh.V, sh.F, seed=3, mds_start="always")
     b, rb = parameterize(sh.V, sh.F, seed=3, mds_start="always")
     assert ra["method"]["fill"]["used"] and ra["method"]["refine"]["method"] == "sd"
@@ -96,7 +96,7 @@ def test_default_pipeline_deterministic():
 def test_default_pipeline_reproducible_across_processes():
     """The same input and seed give a bit-identical map in two fresh processes, with the default backends
     (camelhead: PARDISO's threaded factorization gave a different map in every run before MKL's conditional
-    numerical reproducibility was switched on; see solvers._prepare_mkl)."""
+    numerical reproducibility was switched on; see solvers.prepare_mkl)."""
     import os
     import subprocess
     import sys
@@ -104,7 +104,7 @@ def test_default_pipeline_reproducible_across_processes():
     from conftest import shared_mesh
 
     mesh = shared_mesh("camelhead.off")
-    code = ("import hashlib, sys; from heatparam import io, pipeline; V, F = io.load_mesh(sys.argv[1]); "
+    code = ("import hashlib, sys; from heatparam import formats, pipeline; V, F = formats.load_mesh(sys.argv[1]); "
             "uv, rep = pipeline.parameterize(V, F, seed=1); "
             "print(hashlib.sha1(uv.tobytes()).hexdigest(), rep['method']['refine']['polish']['backend'])")
     env = {k: v for k, v in os.environ.items() if k != "MKL_CBWR"}  # as a user's shell would be
@@ -116,7 +116,7 @@ def test_default_pipeline_reproducible_across_processes():
 def test_near_isometric_lscm_skips_the_heat_stage_same_map():
     """Developable with holes: LSCM is bijective and isometric to round-off, so the default skips fill, geodesics
     and MDS, and the map is bit-identical to the one computed with them (``mds_start="always"``)."""
-    sh = shapes.cylinder_with_holes(h=0.09)
+    sh = datasets.cylinder_with_holes(h=0.09)
     fast, rf = parameterize(sh.V, sh.F)
     full, ra = parameterize(sh.V, sh.F, mds_start="always")
     assert np.array_equal(fast, full)
@@ -124,21 +124,21 @@ def test_near_isometric_lscm_skips_the_heat_stage_same_map():
     assert rf["method"]["geodesics"].startswith("skipped") and "skipped" in rf["method"]["fill"]
     assert not rf["method"]["fill"]["used"] and "geodesics" not in rf["timings_s"]
     assert rf["metrics"]["stress_rel_rms"] is None and ra["metrics"]["stress_rel_rms"] > 0
-    assert rf["method"]["refine"]["start"]["energy"]["lscm"] - 1 < refine.ISOMETRIC_START_EXCESS
+    assert rf["method"]["refine"]["start"]["energy"]["lscm"] - 1 < options.ISOMETRIC_START_EXCESS
 
 
 def test_curved_surface_keeps_the_heat_stage():
     """A spherical cap (LSCM 1% above an isometry): the MDS layout is computed and competes as a start."""
-    d = shapes.flat_disk(h=0.08)
-    V = shapes.lift_sphere(d.V[:, :2], 1.2)
+    d = datasets.flat_disk(h=0.08)
+    V = datasets.lift_sphere(d.V[:, :2], 1.2)
     _, rep = parameterize(V, d.F)
     start = rep["method"]["refine"]["start"]
-    assert start["energy"]["lscm"] - 1 > refine.ISOMETRIC_START_EXCESS and "mds" in start["energy"]
+    assert start["energy"]["lscm"] - 1 > options.ISOMETRIC_START_EXCESS and "mds" in start["energy"]
     assert "geodesics" in rep["timings_s"] and rep["metrics"]["stress_rel_rms"] > 0
 
 
 def test_explicit_heat_options_are_never_skipped():
-    sh = shapes.cylinder_with_holes(h=0.09)
+    sh = datasets.cylinder_with_holes(h=0.09)
     for kw in ({"fill": "biharmonic"}, {"geodesics": "landmarks"}, {"landmarks": 20}, {"stress": "smacof"}):
         _, rep = parameterize(sh.V, sh.F, **kw)
         assert "geodesics" in rep["timings_s"], kw
@@ -147,12 +147,13 @@ def test_explicit_heat_options_are_never_skipped():
 def test_folded_coarse_mds_skips_the_heat_stage_same_map(monkeypatch):
     """camelhead (MDS folds): with the fold check on at its size, the MDS of a coarse mesh folds too, so the full
     heat stage is skipped and the map is bit-identical to the one computed with it (the start is LSCM either way)."""
-    from heatparam import io, pipeline
+    from heatparam import formats
+    from heatparam.pipeline import shortcuts
 
     from conftest import shared_mesh
 
-    V, F = io.load_mesh(shared_mesh("camelhead.off"))
-    monkeypatch.setattr(pipeline, "FOLD_CHECK_MIN_VERTICES", 5000)
+    V, F = formats.load_mesh(shared_mesh("camelhead.off"))
+    monkeypatch.setattr(shortcuts, "FOLD_CHECK_MIN_VERTICES", 5000)
     fast, rf = parameterize(V, F)
     full, ra = parameterize(V, F, mds_start="always")
     assert np.array_equal(fast, full)
@@ -163,32 +164,33 @@ def test_folded_coarse_mds_skips_the_heat_stage_same_map(monkeypatch):
 
 
 def test_fold_check_that_finds_no_fold_or_fails_keeps_the_heat_stage(monkeypatch):
-    from heatparam import pipeline
+    from heatparam.pipeline import shortcuts
 
-    d = shapes.flat_disk(h=0.05)
-    V = shapes.lift_sphere(d.V[:, :2], 1.2)  # a cap: LSCM 1% above an isometry, MDS does not fold
-    monkeypatch.setattr(pipeline, "FOLD_CHECK_MIN_VERTICES", 1000)
+    d = datasets.flat_disk(h=0.05)
+    V = datasets.lift_sphere(d.V[:, :2], 1.2)  # a cap: LSCM 1% above an isometry, MDS does not fold
+    monkeypatch.setattr(shortcuts, "FOLD_CHECK_MIN_VERTICES", 1000)
     _, rep = parameterize(V, d.F)
     assert rep["method"]["fold_check"]["flips"] == 0 and "geodesics" in rep["timings_s"]
 
     def broken(*a, **k):
         raise ValueError("coarse triangulation failed: test")
 
-    monkeypatch.setattr(refine, "coarse_mesh", broken)
+    monkeypatch.setattr(shortcuts, "coarse_mesh", broken)
     _, rep = parameterize(V, d.F)
     assert "test" in rep["method"]["fold_check"]["failed"] and "geodesics" in rep["timings_s"]
 
 
 def test_fold_check_skips_only_beyond_what_the_repair_handles(monkeypatch):
-    """The refinement repairs an MDS start with a few flips (≤ refine.MDS_REPAIR_MAX_FRACTION of the faces), so the
+    """The refinement repairs an MDS start with a few flips (≤ start.MDS_REPAIR_MAX_FRACTION of the faces), so the
     fold check only skips the heat stage above that: with the limit raised past camelhead's folds, it runs."""
-    from heatparam import io, pipeline
+    from heatparam import formats
+    from heatparam.pipeline import shortcuts
 
     from conftest import shared_mesh
 
-    V, F = io.load_mesh(shared_mesh("camelhead.off"))
-    monkeypatch.setattr(pipeline, "FOLD_CHECK_MIN_VERTICES", 5000)
-    monkeypatch.setattr(refine, "MDS_REPAIR_MAX_FRACTION", 0.9)
+    V, F = formats.load_mesh(shared_mesh("camelhead.off"))
+    monkeypatch.setattr(shortcuts, "FOLD_CHECK_MIN_VERTICES", 5000)
+    monkeypatch.setattr(shortcuts, "MDS_REPAIR_MAX_FRACTION", 0.9)
     _, rep = parameterize(V, F, refine_iters=1)
     fc = rep["method"]["fold_check"]
     assert 0 < fc["flips"] <= 0.9 * fc["faces"] and fc["usable"] and "geodesics" in rep["timings_s"]
@@ -198,7 +200,7 @@ def test_noisy_developable_scan_starts_from_the_heat_method_layout():
     """Scanner-like noise (0.2 × the edge length on every coordinate) makes LSCM's layout far from isometric
     (energy 1.53) while the heat-geodesic MDS layout stays close (1.02): the refinement starts from MDS, the map is
     bijective, and the default's start checks do not change it."""
-    s = shapes.cylinder_patch()
+    s = datasets.cylinder_patch()
     h = float(np.mean(np.linalg.norm(s.V[s.F[:, 1]] - s.V[s.F[:, 0]], axis=1)))
     V = s.V + 0.2 * h * np.random.default_rng(1).standard_normal(s.V.shape)
     uv, rep = parameterize(V, s.F)
@@ -215,11 +217,11 @@ def test_noisy_developable_scan_starts_from_the_heat_method_layout():
 # ----------------------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def halftunnel():
-    from heatparam import io
+    from heatparam import formats
 
     from conftest import shared_mesh
 
-    return io.load_mesh(shared_mesh("halftunnel.off"))
+    return formats.load_mesh(shared_mesh("halftunnel.off"))
 
 
 @pytest.fixture(scope="module")
@@ -232,9 +234,9 @@ def _slim_from_tutte(V, F, iters=100):
     """libigl SLIM (symmetric Dirichlet, 100 iterations) from a Tutte start: the peer of issue 5."""
     import igl
 
-    from heatparam.mesh import boundary_loops
+    from heatparam.mesh import loops_outer_first
 
-    b = boundary_loops(V, F)[0]
+    b = loops_outer_first(V, F)[0]
     uv0 = igl.harmonic(V, F, b, igl.map_vertices_to_circle(V, b.astype(np.int32)), 1)
     data = igl.slim_precompute(V, F.astype(np.int32), uv0, igl.MappingEnergyType.SYMMETRIC_DIRICHLET,
                                np.zeros(0, np.int32), np.zeros((0, 2)))
@@ -271,20 +273,20 @@ def test_seams_none_and_no_holes_keep_one_uv_per_vertex(halftunnel, halftunnel_m
     V, F = halftunnel
     whole = halftunnel_maps[1]
     assert whole.uv.shape == (len(V), 2) and np.array_equal(whole.Fuv, F)
-    assert whole.report["method"]["seams"] == {"mode": "none", "used": False, "reason": "disabled (--seams none)"}
+    assert whole.report["method"]["seams"] == {"mode": "none", "used": False, "reason": "disabled (seams='none')"}
     r = parameterize(cylinder.V, cylinder.F)
     assert r.report["method"]["seams"]["reason"] == "no holes" and np.array_equal(r.uv_vertex, np.arange(len(r.uv)))
 
 
 def test_seams_auto_leaves_near_isometric_parts_with_holes_uncut():
-    sh = shapes.cylinder_with_holes()
+    sh = datasets.cylinder_with_holes()
     r = parameterize(sh.V, sh.F)
     s = r.report["method"]["seams"]
     assert not s["used"] and "near-isometric" in s["reason"] and r.uv.shape == (len(sh.V), 2)
     h = parameterize(sh.V, sh.F, seams="holes")  # asked for: cut, and still an isometry (a developable part)
     assert h.seamed and h.report["metrics"]["bijective"] and h.report["metrics"]["iso_mean"] < 1.001
     assert h.report["method"]["fill"]["used"] is False and "seams" in h.report["method"]["fill"]["reason"]
-    assert shapes.layout_error(h.uv, sh.uv_true[h.uv_vertex]) < 1e-3
+    assert datasets.layout_error(h.uv, sh.uv_true[h.uv_vertex]) < 1e-3
 
 
 def test_seams_deterministic(halftunnel, halftunnel_maps):

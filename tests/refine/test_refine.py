@@ -5,7 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from heatparam import metrics, pipeline, refine, shapes
+from heatparam import datasets, metrics, pipeline, refine
+from heatparam.layout import tutte
+from heatparam.mesh import boundary_loops
+from heatparam.refine import energy, multilevel, newton, scaffold, start
 
 from conftest import shared_mesh
 
@@ -16,9 +19,9 @@ def _param(V, F):
 
 
 def _load(name):
-    from heatparam import io
+    from heatparam import formats
 
-    return io.load_mesh(shared_mesh(name))
+    return formats.load_mesh(shared_mesh(name))
 
 
 # ---------------------------------------------------------------------------------------------------------- units
@@ -26,7 +29,7 @@ def test_max_step_is_first_root_of_det():
     rng = np.random.default_rng(0)
     J = np.eye(2)[None] + 0.1 * rng.standard_normal((50, 2, 2))
     D = rng.standard_normal((50, 2, 2))
-    t = refine.max_step(J, D)
+    t = energy.max_step(J, D)
     assert np.isfinite(t) and t > 0
     dets = np.linalg.det(J + t * D)
     assert np.isclose(dets, 0.0, atol=1e-9).any()
@@ -36,7 +39,7 @@ def test_max_step_is_first_root_of_det():
 def test_svd2_matches_numpy():
     rng = np.random.default_rng(1)
     J = rng.standard_normal((300, 2, 2))
-    U, s, V = refine.svd2(J)
+    U, s, V = energy.svd2(J)
     assert np.allclose(np.matmul(U * s[:, None, :], V.transpose(0, 2, 1)), J)
     assert np.allclose(np.linalg.det(U), 1) and np.allclose(np.linalg.det(V), 1)  # rotations
     assert np.allclose(np.abs(s), np.linalg.svd(J, compute_uv=False))
@@ -62,8 +65,8 @@ def test_sd_eigensystem_is_the_hessian():
     rng = np.random.default_rng(2)
     J = np.eye(2)[None] + 0.4 * rng.standard_normal((200, 2, 2))
     J = J[np.linalg.det(J) > 0.2]
-    psi = lambda X: refine.symmetric_dirichlet(X, np.ones(len(X)))[1]  # noqa: E731
-    grad, lam, U, V = refine.sd_eigensystem(J)
+    psi = lambda X: energy.symmetric_dirichlet(X, np.ones(len(X)))[1]  # noqa: E731
+    grad, lam, U, V = energy.sd_eigensystem(J)
     h = 1e-6
     fd = np.stack([(psi(J + h * E) - psi(J - h * E)) / (2 * h) for E in np.eye(4).reshape(4, 2, 2)], axis=1)
     assert np.allclose(grad.reshape(-1, 4), fd, rtol=1e-6, atol=1e-6)
@@ -83,14 +86,14 @@ def test_newton_blocks_are_psd_and_exact_where_convex():
     J = J[np.linalg.det(J) > 0.1]
     P = rng.standard_normal((len(J), 3, 2))
     P[np.linalg.det(np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], 2)) < 0] *= [1, -1]
-    g = refine.hat_gradients(P)
-    _, blocks = refine.sd_newton_blocks(J, g, np.ones(len(J)))
+    g = energy.hat_gradients(P)
+    _, blocks = energy.sd_newton_blocks(J, g, np.ones(len(J)))
     assert np.linalg.eigvalsh(blocks).min() > -1e-8 * np.abs(blocks).max()
     # where all four eigenvalues are positive the block is the exact Hessian B^T H_J B
-    _, lam, _, _ = refine.sd_eigensystem(J)
+    _, lam, _, _ = energy.sd_eigensystem(J)
     ok = (lam > 0).all(axis=1)
     assert ok.sum() > 10
-    psi = lambda X: refine.symmetric_dirichlet(X, np.ones(len(X)))[1]  # noqa: E731
+    psi = lambda X: energy.symmetric_dirichlet(X, np.ones(len(X)))[1]  # noqa: E731
     HJ = _fd_hessian(psi, J)
     Bm = np.zeros((len(J), 4, 2, 3))
     for a in range(2):
@@ -102,10 +105,10 @@ def test_newton_blocks_are_psd_and_exact_where_convex():
 
 def test_scaffold_covers_box_minus_surface():
     """The scaffold plus the surface tile the box: areas add up, every scaffold triangle is positive."""
-    s = shapes.cylinder_with_holes()
+    s = datasets.cylinder_with_holes()
     uv = s.uv_true
-    disk = refine.build_disk(s.V, s.F)
-    sc = refine.build_scaffold(uv, [disk.outer, *disk.holes])
+    disk = tutte.build_disk(s.V, s.F)
+    sc = scaffold.build_scaffold(uv, [disk.outer, *disk.holes])
     X = np.vstack([uv, sc.box])
 
     def areas(F):
@@ -122,16 +125,16 @@ def test_scaffold_covers_box_minus_surface():
 
 
 def test_tutte_on_disk_with_holes_is_flip_free():
-    s = shapes.cylinder_with_holes()
-    disk = refine.build_disk(s.V, s.F)
+    s = datasets.cylinder_with_holes()
+    disk = tutte.build_disk(s.V, s.F)
     assert len(disk.holes) >= 1
-    uv = refine.tutte(s.V, disk)
-    g, _ = refine.surface_gradients(s.V, s.F)
-    assert (np.linalg.det(refine.jacobians(uv[: len(s.V)], s.F, g)) > 0).all()
+    uv = tutte.tutte(s.V, disk)
+    g, _ = energy.surface_gradients(s.V, s.F)
+    assert (np.linalg.det(energy.jacobians(uv[: len(s.V)], s.F, g)) > 0).all()
 
 
 def test_refine_none_returns_raw_mds():
-    s = shapes.cylinder_patch()
+    s = datasets.cylinder_patch()
     _, rep = pipeline.parameterize(s.V, s.F, fill="none", refine="none")
     assert rep["method"]["refine"] == {"method": "none"}
     assert rep["metrics"]["iso_mean"] > 1.01  # the raw heat-MDS map (measured ~1.05)
@@ -144,7 +147,7 @@ def _check_isometric(shape):
     assert m["flips"] == 0
     assert m["boundary_crossings"] == 0
     assert m["iso_mean"] <= 1.001  # issue 5 acceptance
-    err = shapes.layout_error(uv, shape.uv_true)
+    err = datasets.layout_error(uv, shape.uv_true)
     assert err <= 1e-3  # issue 5 acceptance
     # regression guard: the polish reaches the generated meshes' discretization floor (measured 2.3e-5 to 3.8e-5);
     # a scaffold that is too stiff stopped at 2e-4 to 6e-4 while still passing the line above
@@ -154,15 +157,15 @@ def _check_isometric(shape):
 
 
 def test_cylinder_patch_isometric():
-    _check_isometric(shapes.cylinder_patch())
+    _check_isometric(datasets.cylinder_patch())
 
 
 def test_cylinder_with_holes_isometric():
-    _check_isometric(shapes.cylinder_with_holes())
+    _check_isometric(datasets.cylinder_with_holes())
 
 
 def test_cone_s_strip_isometric():
-    _check_isometric(shapes.cone_s_strip())
+    _check_isometric(datasets.cone_s_strip())
 
 
 def _check_bijective(V, F):
@@ -173,7 +176,7 @@ def _check_bijective(V, F):
 
 
 def test_curved_cap_with_holes_bijective():
-    s = shapes.curved_cap_with_holes()
+    s = datasets.curved_cap_with_holes()
     _check_bijective(s.V, s.F)
 
 
@@ -210,48 +213,48 @@ def test_polish_backends_agree(backend):
 
     if backend not in available_backends():
         pytest.skip(f"{backend} not installed")
-    s = shapes.cylinder_with_holes()
-    disk = refine.build_disk(s.V, s.F)
-    g, area = refine.surface_gradients(s.V, s.F)
-    uv0 = refine.tutte(s.V, disk)[: len(s.V)]
+    s = datasets.cylinder_with_holes()
+    disk = tutte.build_disk(s.V, s.F)
+    g, area = energy.surface_gradients(s.V, s.F)
+    uv0 = tutte.tutte(s.V, disk)[: len(s.V)]
     loops = [disk.outer, *disk.holes]
-    x_ref, info_ref = refine.polish(uv0, s.F, g, area, loops)
-    x, info = refine.polish(uv0, s.F, g, area, loops, backend=backend)
+    x_ref, info_ref = newton.polish(uv0, s.F, g, area, loops)
+    x, info = newton.polish(uv0, s.F, g, area, loops, backend=backend)
     assert info["backend"] == backend and info["converged"]
-    assert shapes.layout_error(x, s.uv_true) <= 1e-4
+    assert datasets.layout_error(x, s.uv_true) <= 1e-4
     # the same map up to a rigid motion (a free-boundary map's rotation is fixed only by a 1e-9 regularization)
-    assert shapes.layout_error(x, x_ref) <= 1e-5
+    assert datasets.layout_error(x, x_ref) <= 1e-5
 
 
 def test_scaffold_refuses_crossing_loops():
     """Loops that cross cannot bound a scaffold: a clear ValueError, not a broken triangulation."""
-    s = shapes.cylinder_with_holes()
-    disk = refine.build_disk(s.V, s.F)
+    s = datasets.cylinder_with_holes()
+    disk = tutte.build_disk(s.V, s.F)
     uv = s.uv_true.copy()
     hole = disk.holes[0]
     # drag one hole vertex far outside the outer loop: the hole's edges now cross it
     uv[hole[0]] = uv[disk.outer].max(axis=0) + 1.0
     with pytest.raises(ValueError, match="scaffold"):
-        refine.build_scaffold(uv, [disk.outer, *disk.holes])
+        scaffold.build_scaffold(uv, [disk.outer, *disk.holes])
 
 
 def test_polish_stops_cleanly_on_a_layout_it_cannot_scaffold():
     """Handed a non-bijective layout, the polish returns it unchanged and says why (refine() never does this)."""
-    s = shapes.cylinder_with_holes()
-    disk = refine.build_disk(s.V, s.F)
-    g, area = refine.surface_gradients(s.V, s.F)
+    s = datasets.cylinder_with_holes()
+    disk = tutte.build_disk(s.V, s.F)
+    g, area = energy.surface_gradients(s.V, s.F)
     uv = s.uv_true.copy()
     uv[disk.holes[0][0]] = uv[disk.outer].max(axis=0) + 1.0
-    x, info = refine.polish(uv, s.F, g, area, [disk.outer, *disk.holes])
+    x, info = newton.polish(uv, s.F, g, area, [disk.outer, *disk.holes])
     assert np.array_equal(x, uv)
     assert not info["converged"] and info["stop"].startswith("scaffold failed")
 
 
 def test_refine_report_says_what_was_done():
-    s = shapes.curved_cap_with_holes()
+    s = datasets.curved_cap_with_holes()
     _, rep = pipeline.parameterize(s.V, s.F)
     r = rep["method"]["refine"]
-    assert r["holes"] == len(refine.build_disk(s.V, s.F).holes) >= 1
+    assert r["holes"] == len(tutte.build_disk(s.V, s.F).holes) >= 1
     assert r["start"]["layout"] in ("mds", "lscm", "tutte")
     pol = r["polish"]
     assert pol["converged"] and pol["stop"] == "converged" and pol["iterations"] >= 1
@@ -260,7 +263,7 @@ def test_refine_report_says_what_was_done():
     assert r["bijective"] and r["flips"] == 0 and r["boundary_crossings"] == 0
 
 
-@pytest.mark.parametrize("make", [shapes.cylinder_with_holes, shapes.cone_s_strip])
+@pytest.mark.parametrize("make", [datasets.cylinder_with_holes, datasets.cone_s_strip])
 def test_hessian_pattern_assembles_like_coo(make):
     """The block-structured pattern sums per-face 6×6 blocks exactly as a plain COO assembly would."""
     import scipy.sparse as sp
@@ -271,7 +274,7 @@ def test_hessian_pattern_assembles_like_coo(make):
     ids = np.concatenate([F, F + n], axis=1)  # unknown (a, corner i) = a*n + F[:, i], as in sd_newton_blocks
     ref = sp.coo_matrix((vals.ravel(), (np.repeat(ids, 6, axis=1).ravel(), np.tile(ids, (1, 6)).ravel())),
                         shape=(2 * n, 2 * n)).tocsc()
-    H = refine._Pattern(F, n).matrix(vals)
+    H = newton.HessianPattern(F, n).matrix(vals)
     assert H.shape == ref.shape and H.nnz == ref.nnz and H.has_sorted_indices
     assert abs(H - ref).max() <= 1e-12
 
@@ -283,9 +286,9 @@ def test_polish_of_an_isometry_converges_at_once():
     from conftest import flat_disk
 
     V, F = flat_disk(n_ring=12)
-    g, area = refine.surface_gradients(V, F)
-    disk = refine.build_disk(V, F)
-    x, info = refine.polish(V[:, :2].copy(), F, g, area, [disk.outer, *disk.holes])
+    g, area = energy.surface_gradients(V, F)
+    disk = tutte.build_disk(V, F)
+    x, info = newton.polish(V[:, :2].copy(), F, g, area, [disk.outer, *disk.holes])
     assert info["converged"] and info["stop"].startswith("converged") and info["iterations"] == 0
     assert info["factorizations"] == 0 and np.array_equal(x, V[:, :2])
 
@@ -296,10 +299,10 @@ def test_polish_of_a_nearly_isometric_start_takes_newton_steps():
     from conftest import flat_disk
 
     V, F = flat_disk(n_ring=12)
-    g, area = refine.surface_gradients(V, F)
-    disk = refine.build_disk(V, F)
+    g, area = energy.surface_gradients(V, F)
+    disk = tutte.build_disk(V, F)
     rng = np.random.default_rng(0)
-    x, info = refine.polish(V[:, :2] + 1e-4 * rng.standard_normal((len(V), 2)), F, g, area,
+    x, info = newton.polish(V[:, :2] + 1e-4 * rng.standard_normal((len(V), 2)), F, g, area,
                             [disk.outer, *disk.holes])
     assert info["converged"] and info["stop"] == "converged" and info["iterations"] >= 1
     assert info["energy_start"] - 1 > 1e-6 and info["energy_end"] - 1 < 1e-9
@@ -309,7 +312,7 @@ def test_refine_survives_a_failing_lscm_candidate():
     """LSCM is only a candidate start: when it fails, the bijective MDS start (or Tutte) still serves."""
     from heatparam.errors import HeatparamError
 
-    s = shapes.cylinder_patch(h=0.1)
+    s = datasets.cylinder_patch(h=0.1)
 
     def broken():
         raise HeatparamError("the conformal (LSCM) layout failed")
@@ -317,29 +320,29 @@ def test_refine_survives_a_failing_lscm_candidate():
     uv_mds, _ = pipeline.parameterize(s.V, s.F, refine="none", fill="none")
     uv, rep = refine.refine(s.V, s.F, uv_mds, conformal=broken)
     assert rep["start"]["layout"] == "mds" and "lscm_failed" in rep["start"]
-    assert rep["bijective"] and shapes.layout_error(uv, s.uv_true) <= 1e-3
+    assert rep["bijective"] and datasets.layout_error(uv, s.uv_true) <= 1e-3
 
 
 # ---------------------------------------------------------------------------------------------- coarse-to-fine
 def test_coarse_vertices_keep_every_boundary_vertex_in_loop_order():
     V, F = _load("camelhead.off")
-    disk = refine.build_disk(V, F)
+    disk = tutte.build_disk(V, F)
     loops = [disk.outer, *disk.holes]
-    ids = refine.coarse_vertices(V, F, loops, 1500)
+    ids = multilevel.coarse_vertices(V, F, loops, 1500)
     nb = sum(len(lp) for lp in loops)
     assert np.array_equal(ids[:nb], np.concatenate(loops))
     assert len(np.unique(ids)) == len(ids)
     assert 0.5 * 1500 <= len(ids) - nb <= 2.0 * 1500  # about the target, spread by a grid
-    assert np.array_equal(ids, refine.coarse_vertices(V, F, loops, 1500))  # deterministic
+    assert np.array_equal(ids, multilevel.coarse_vertices(V, F, loops, 1500))  # deterministic
 
 
 def test_prolongation_reproduces_affine_maps():
     """A coarse result that is an affine image of the coarse start carries every fine vertex by the same map."""
-    s = shapes.cylinder_with_holes()
-    disk = refine.build_disk(s.V, s.F)
+    s = datasets.cylinder_with_holes()
+    disk = tutte.build_disk(s.V, s.F)
     loops = [disk.outer, *disk.holes]
-    ids = refine.coarse_vertices(s.V, s.F, loops, 300)
-    T = refine.coarse_mesh(s.uv_true, loops, ids)
+    ids = multilevel.coarse_vertices(s.V, s.F, loops, 300)
+    T = multilevel.coarse_mesh(s.uv_true, loops, ids)
 
     def signed(X, FF):
         e1, e2 = X[FF[:, 1]] - X[FF[:, 0]], X[FF[:, 2]] - X[FF[:, 0]]
@@ -349,24 +352,24 @@ def test_prolongation_reproduces_affine_maps():
     # the coarse faces tile the fine layout's region: holes stay holes, same total area
     assert np.isclose(signed(s.uv_true[ids], T).sum(), signed(s.uv_true, s.F).sum(), rtol=1e-9)
     A, b = np.array([[1.3, -0.4], [0.2, 0.7]]), np.array([0.5, -2.0])
-    out = refine.prolongate(s.uv_true, s.uv_true[ids], T, s.uv_true[ids] @ A.T + b)
+    out = multilevel.prolongate(s.uv_true, s.uv_true[ids], T, s.uv_true[ids] @ A.T + b)
     assert np.allclose(out, s.uv_true @ A.T + b, atol=1e-12)
 
 
 def test_repair_flips_unflips_and_keeps_the_rest():
-    s = shapes.cylinder_patch(h=0.05)
-    g, _ = refine.surface_gradients(s.V, s.F)
+    s = datasets.cylinder_patch(h=0.05)
+    g, _ = energy.surface_gradients(s.V, s.F)
     x = s.uv_true.copy()
-    disk = refine.build_disk(s.V, s.F)
+    disk = tutte.build_disk(s.V, s.F)
     locked = np.zeros(len(x), dtype=bool)
     locked[disk.outer] = True
     inner = np.flatnonzero(~locked)
     v = inner[len(inner) // 2]
     x[v] += 3.0 * 0.05 * np.array([1.0, 0.3])  # pushed across its neighbours: its star flips
-    assert (refine._det(refine.jacobians(x, s.F, g)) <= 0).sum() > 0
-    y, flipped, rounds = refine.repair_flips(x, s.uv_true, s.F, g, locked)
+    assert (energy.det(energy.jacobians(x, s.F, g)) <= 0).sum() > 0
+    y, flipped, rounds = multilevel.repair_flips(x, s.uv_true, s.F, g, locked)
     assert y is not None and flipped > 0 and rounds >= 1
-    assert (refine._det(refine.jacobians(y, s.F, g)) > 0).all()
+    assert (energy.det(energy.jacobians(y, s.F, g)) > 0).all()
     assert np.array_equal(y[locked], x[locked])
     moved = np.flatnonzero(np.any(y != x, axis=1))
     far = np.linalg.norm(s.uv_true[moved] - s.uv_true[v], axis=1).max()
@@ -375,16 +378,16 @@ def test_repair_flips_unflips_and_keeps_the_rest():
 
 
 def test_coarse_to_fine_on_a_surface_with_holes_is_bijective():
-    s = shapes.curved_cap_with_holes(sphere_radius=1.2, h=0.02)
-    g, _ = refine.surface_gradients(s.V, s.F)
-    disk = refine.build_disk(s.V, s.F)
+    s = datasets.curved_cap_with_holes(sphere_radius=1.2, h=0.02)
+    g, _ = energy.surface_gradients(s.V, s.F)
+    disk = tutte.build_disk(s.V, s.F)
     loops = [disk.outer, *disk.holes]
-    x0 = refine.conformal_start(s.V, s.F, disk)
-    y, info = refine.coarse_to_fine(s.V, s.F, x0, loops, g, min_vertices=0, max_iters=200, tol=1e-6,
+    x0 = start.conformal_start(s.V, s.F, disk)
+    y, info = multilevel.coarse_to_fine(s.V, s.F, x0, loops, g, min_vertices=0, max_iters=200, tol=1e-6,
                                     backend="auto")
     assert info["used"] and y is not None, info
     assert info["coarse_vertices"] < len(s.V) and info["coarse_polish"]["converged"]
-    assert refine._is_bijective(y, s.F, g) == (0, 0)
+    assert start.bijectivity(y, s.F, g) == (0, 0)
 
 
 def test_multilevel_polish_matches_single_level():
@@ -395,16 +398,16 @@ def test_multilevel_polish_matches_single_level():
     V, F = _load("camelhead.off")
     V, F = igl.upsample(V, F)
     uv_raw, _ = pipeline.parameterize(V, F, refine="none")
-    uv1, rep1 = refine.refine(V, F, uv_raw, pipeline.Options(refine_multilevel=0))
-    uv2, rep2 = refine.refine(V, F, uv_raw, pipeline.Options())
-    assert len(V) >= pipeline.Options().refine_multilevel
+    uv1, rep1 = refine.refine(V, F, uv_raw, refine.RefineParams(multilevel=0))
+    uv2, rep2 = refine.refine(V, F, uv_raw, refine.RefineParams())
+    assert len(V) >= refine.RefineParams().multilevel
     assert not rep1["multilevel"]["used"] and rep2["multilevel"]["used"], rep2["multilevel"]
     assert rep2["bijective"] and rep2["polish"]["converged"]
     assert rep2["polish"]["iterations"] < rep1["polish"]["iterations"]
     assert rep2["polish"]["energy_end"] == pytest.approx(rep1["polish"]["energy_end"], rel=1e-4)
     # the fine level stops at the looser tolerance (the coarse one converged) and still lands on that minimum
-    tol = pipeline.Options().refine_tol
-    assert rep2["multilevel"]["fine_tol"] == pytest.approx(refine.MULTILEVEL_FINE_TOL_FACTOR * tol)
+    tol = refine.RefineParams().tol
+    assert rep2["multilevel"]["fine_tol"] == pytest.approx(multilevel.MULTILEVEL_FINE_TOL_FACTOR * tol)
 
 
 def _dented_grid() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -427,47 +430,47 @@ def _dented_grid() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 def test_polish_keeps_guard_triangles_positive():
     """A guard triangle has no energy but the line search never lets it flip: here the isometry itself flips it."""
     V, F, uv, ear = _dented_grid()
-    g, area = refine.surface_gradients(V, F)
-    loops = refine.metrics.boundary_loops(F)
-    assert refine._det(refine.jacobians(uv, ear, refine.hat_gradients(uv[ear])))[0] > 0
-    assert refine._is_bijective(uv, F, g) == (0, 0)
+    g, area = energy.surface_gradients(V, F)
+    loops = boundary_loops(F)
+    assert energy.det(energy.jacobians(uv, ear, energy.hat_gradients(uv[ear])))[0] > 0
+    assert start.bijectivity(uv, F, g) == (0, 0)
 
     def ear_det(x):
         e1, e2 = x[ear[0, 1]] - x[ear[0, 0]], x[ear[0, 2]] - x[ear[0, 0]]
         return e1[0] * e2[1] - e1[1] * e2[0]
 
-    free, _ = refine.polish(uv, F, g, area, loops)
-    guarded, info = refine.polish(uv, F, g, area, loops, guards=ear)
-    assert ear_det(free) < 0 and shapes.layout_error(free, V[:, :2]) < 1e-4  # the isometry: the ear flipped
-    assert ear_det(guarded) > 0 and refine._is_bijective(guarded, F, g) == (0, 0)
+    free, _ = newton.polish(uv, F, g, area, loops)
+    guarded, info = newton.polish(uv, F, g, area, loops, guards=ear)
+    assert ear_det(free) < 0 and datasets.layout_error(free, V[:, :2]) < 1e-4  # the isometry: the ear flipped
+    assert ear_det(guarded) > 0 and start.bijectivity(guarded, F, g) == (0, 0)
     assert info["energy_end"] > 1.0  # kept away from the isometry by the guard
 
 
 def test_boundary_faces():
     V, F, _, ear = _dented_grid()
     bnd = np.zeros(len(V), dtype=bool)
-    bnd[np.concatenate(refine.metrics.boundary_loops(F))] = True
-    B = refine.boundary_faces(F, bnd)
+    bnd[np.concatenate(boundary_loops(F))] = True
+    B = multilevel.boundary_faces(F, bnd)
     assert len(B) == 2 and bnd[B].all()  # the grid's two corner triangles with three boundary corners
-    assert not refine.boundary_faces(np.vstack([F, ear]), np.zeros(len(V), dtype=bool)).size
+    assert not multilevel.boundary_faces(np.vstack([F, ear]), np.zeros(len(V), dtype=bool)).size
 
 
 def test_multilevel_polish_recurses_and_matches_single_level(monkeypatch):
     """Three levels (coarse-to-fine inside the coarse level) on camelhead.off from LSCM, thresholds lowered so that
     its 11k vertices get them: every level used, bijective, the same minimum as the plain polish."""
     V, F = _load("camelhead.off")
-    g, area = refine.surface_gradients(V, F)
-    disk = refine.build_disk(V, F)
+    g, area = energy.surface_gradients(V, F)
+    disk = tutte.build_disk(V, F)
     loops = [disk.outer, *disk.holes]
-    x0 = refine.conformal_start(V, F, disk)
-    monkeypatch.setattr(refine, "COARSE_MIN", 500)
+    x0 = start.conformal_start(V, F, disk)
+    monkeypatch.setattr(multilevel, "COARSE_MIN", 500)
     kw = dict(max_iters=200, tol=1e-6, backend="auto")
-    x1, p1, ml1 = refine.multilevel_polish(V, F, x0, loops, g, area, min_vertices=0, **kw)
-    x3, p3, ml3 = refine.multilevel_polish(V, F, x0, loops, g, area, min_vertices=1000, **kw)
+    x1, p1, ml1 = multilevel.multilevel_polish(V, F, x0, loops, g, area, min_vertices=0, **kw)
+    x3, p3, ml3 = multilevel.multilevel_polish(V, F, x0, loops, g, area, min_vertices=1000, **kw)
     assert not ml1["used"] and ml1["reason"] == "small mesh"
     assert ml3["used"] and ml3["coarse_multilevel"]["used"], ml3
     assert len(V) > ml3["coarse_vertices"] > ml3["coarse_multilevel"]["coarse_vertices"]
-    assert refine._is_bijective(x3, F, g) == (0, 0) and p3["converged"]
+    assert start.bijectivity(x3, F, g) == (0, 0) and p3["converged"]
     assert p3["energy_end"] == pytest.approx(p1["energy_end"], rel=1e-4)
 
 
@@ -484,38 +487,38 @@ def _with_a_fold(uv: np.ndarray, F: np.ndarray, boundary: np.ndarray) -> np.ndar
 
 
 def test_repaired_layout_unfolds_a_few_flips_and_keeps_the_boundary():
-    s = shapes.cylinder_patch()
-    disk = refine.build_disk(s.V, s.F)
+    s = datasets.cylinder_patch()
+    disk = tutte.build_disk(s.V, s.F)
     loops = [disk.outer, *disk.holes]
-    g, _ = refine.surface_gradients(s.V, s.F)
+    g, _ = energy.surface_gradients(s.V, s.F)
     bad = _with_a_fold(s.uv_true, s.F, np.concatenate(loops))
-    flips = int((np.linalg.det(refine.jacobians(bad, s.F, g)) <= 0).sum())
-    assert 0 < flips <= refine.MDS_REPAIR_MAX_FRACTION * len(s.F) + 1
-    z, info = refine.repaired_layout(bad, s.F, g, loops)
+    flips = int((np.linalg.det(energy.jacobians(bad, s.F, g)) <= 0).sum())
+    assert 0 < flips <= start.MDS_REPAIR_MAX_FRACTION * len(s.F) + 1
+    z, info = start.repaired_layout(bad, s.F, g, loops)
     assert info["repaired"] and info["flips"] == flips
-    assert (np.linalg.det(refine.jacobians(z, s.F, g)) > 0).all() and metrics.boundary_crossings(z, s.F) == 0
+    assert (np.linalg.det(energy.jacobians(z, s.F, g)) > 0).all() and metrics.boundary_crossings(z, s.F) == 0
     bnd = np.concatenate(loops)
     assert np.array_equal(z[bnd], bad[bnd])  # the boundary is locked
-    z2, info2 = refine.repaired_layout(s.uv_true, s.F, g, loops)
+    z2, info2 = start.repaired_layout(s.uv_true, s.F, g, loops)
     assert z2 is None and info2["reason"] == "nothing flipped"
 
 
 def test_repaired_layout_refuses_many_flips():
-    s = shapes.cylinder_patch()
-    disk = refine.build_disk(s.V, s.F)
-    g, _ = refine.surface_gradients(s.V, s.F)
+    s = datasets.cylinder_patch()
+    disk = tutte.build_disk(s.V, s.F)
+    g, _ = energy.surface_gradients(s.V, s.F)
     mirrored = s.uv_true * np.array([1.0, -1.0])  # every face flipped
-    z, info = refine.repaired_layout(mirrored, s.F, g, [disk.outer, *disk.holes])
+    z, info = start.repaired_layout(mirrored, s.F, g, [disk.outer, *disk.holes])
     assert z is None and info["reason"] == "too many flips to repair"
 
 
 def test_refine_starts_from_a_repaired_mds_layout_when_it_is_better():
     """A spherical cap: a near-optimal layout with one fold (as a noisy scan's MDS has a few) beats LSCM (1% above
     an isometry) once repaired, and the refinement starts from it."""
-    d = shapes.flat_disk()  # 4.5k faces: up to 4 flips are repaired
-    V = shapes.lift_sphere(d.V[:, :2], 1.2)
+    d = datasets.flat_disk()  # 4.5k faces: up to 4 flips are repaired
+    V = datasets.lift_sphere(d.V[:, :2], 1.2)
     good, _ = pipeline.parameterize(V, d.F)
-    disk = refine.build_disk(V, d.F)
+    disk = tutte.build_disk(V, d.F)
     folded = _with_a_fold(good, d.F, np.concatenate([disk.outer, *disk.holes]))
     x, rep = refine.refine(V, d.F, folded)
     st = rep["start"]

@@ -1,0 +1,69 @@
+"""``mesh.topology`` and ``mesh.planar``: one boundary walker, compaction, signed areas, the triangulation wrapper."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from heatparam.mesh import (
+    boundary_edges,
+    boundary_loops,
+    compact,
+    loop_length,
+    loops_outer_first,
+    make_ccw,
+    polygon_area,
+    signed_areas,
+    triangulate,
+    unique_edges,
+)
+
+from conftest import flat_disk
+
+
+def test_boundary_edges_and_loops_of_a_disk():
+    V, F = flat_disk(8)
+    E = boundary_edges(F)
+    (loop,) = boundary_loops(F)
+    assert len(E) == len(loop)
+    # consecutive loop vertices are boundary half-edges in face orientation
+    he = {tuple(e) for e in E.tolist()}
+    assert all((int(a), int(b)) in he for a, b in zip(loop, np.roll(loop, -1), strict=True))
+
+
+def test_loops_outer_first_sorts_by_length():
+    V = np.array([[x, y, 0.0] for y in range(4) for x in range(4)])
+    idx = lambda x, y: 4 * y + x  # noqa: E731
+    F = []
+    for x in range(3):
+        for y in range(3):
+            if (x, y) == (1, 1):
+                continue  # a hole in the middle
+            F += [[idx(x, y), idx(x + 1, y), idx(x + 1, y + 1)], [idx(x, y), idx(x + 1, y + 1), idx(x, y + 1)]]
+    F = np.array(F)
+    loops = loops_outer_first(V, F)
+    assert [round(loop_length(V, lp), 9) for lp in loops] == [12.0, 4.0]
+
+
+def test_unique_edges_and_compaction():
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    assert unique_edges(F).tolist() == [[0, 1], [0, 2], [0, 3], [1, 2], [2, 3]]
+    used = np.array([True, False, True, True])
+    comp = compact(used)
+    assert comp.keep.tolist() == [0, 2, 3] and comp.remap.tolist() == [0, -1, 1, 2]
+    assert comp.faces(np.array([[0, 2, 3]])).tolist() == [[0, 1, 2]]
+
+
+def test_signed_areas_orientation_and_polygon_area():
+    P = np.array([[0.0, 0], [1, 0], [0, 1]])
+    assert signed_areas(P, np.array([[0, 1, 2], [0, 2, 1]])).tolist() == [0.5, -0.5]
+    assert make_ccw(P, np.array([[0, 2, 1]])).tolist() == [[0, 1, 2]]
+    assert polygon_area(P) == 0.5 and polygon_area(P[::-1]) == -0.5
+
+
+def test_triangulate_fills_a_polygon_with_a_hole():
+    sq = np.array([[0.0, 0], [4, 0], [4, 4], [0, 4]])
+    hole = np.array([[1.0, 1], [1, 3], [3, 3], [3, 1]])
+    E = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 7], [7, 4]])
+    P, T = triangulate(np.vstack([sq, hole]), E)
+    assert len(P) == 8 and abs(signed_areas(P, T)).sum() == pytest.approx(16 - 4)

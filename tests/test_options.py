@@ -1,0 +1,86 @@
+"""``heatparam.options``: one table drives the API's Options, their validation, the CLI and the README."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from dataclasses import fields
+from pathlib import Path
+
+import pytest
+
+from heatparam.cli import build_parser
+from heatparam.errors import HeatparamError
+from heatparam.options import OPTIONS, Options, cli_options, make_options, markdown_table, to_cli_terms
+
+
+def test_options_fields_are_the_table():
+    assert [f.name for f in fields(Options)] == [o.name for o in OPTIONS]
+    d = Options()
+    for o in OPTIONS:
+        assert getattr(d, o.name) == o.default
+    d.validate()  # the defaults are allowed values
+
+
+@pytest.mark.parametrize("name, value", [
+    ("t_coef", math.inf), ("t_coef", 1e300), ("t_coef", 0.0), ("t_coef", -1.0), ("t_coef", math.nan),
+    ("time_step", math.inf), ("time_step", -2.0), ("time_step", 0.0), ("time_step", "later"),
+    ("landmarks", -1), ("landmarks", 2), ("landmarks", 1.5), ("fill_depth", -1), ("fill_depth", 40),
+    ("refine_multilevel", -1), ("seed", -3), ("refine_tol", 0.0), ("fill", "poison"), ("progress", "yes"),
+    ("refine_iters", True),
+])
+def test_values_outside_the_table_are_refused_in_one_line(name, value):
+    with pytest.raises(HeatparamError) as e:
+        make_options(**{name: value})
+    assert name in str(e.value) and "\n" not in str(e.value)
+
+
+def test_unknown_option_named():
+    with pytest.raises(HeatparamError, match="unknown option 'fil'"):
+        make_options(fil="none")
+
+
+def test_numbers_are_normalized():
+    o = make_options(t_coef=2, time_step=3, landmarks=50.0)
+    assert o.t_coef == 2.0 and isinstance(o.t_coef, float) and o.time_step == 3.0 and o.landmarks == 50
+    assert make_options(o, seed=4).t_coef == 2.0  # overrides keep the rest
+
+
+def test_cli_is_generated_from_the_table():
+    unwrap = build_parser()._subparsers._group_actions[0].choices["unwrap"]
+    actions = {a.dest: a for a in unwrap._actions}
+    for o in cli_options():
+        a = actions[o.name]
+        assert o.flag in a.option_strings and a.default == o.default
+        if o.kind == "choice":
+            assert tuple(a.choices) == o.choices
+    assert {o.name for o in OPTIONS if not o.flag} & set(actions) == set()
+
+
+@pytest.mark.parametrize("argv", [["--t-coef", "inf"], ["--t-coef", "1e300"], ["--time-step", "inf"],
+                                  ["--time-step", "nan"], ["--landmarks", "-4"], ["--seed", "x"]])
+def test_cli_refuses_out_of_range_values(argv, tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:
+        build_parser().parse_args(["unwrap", "in.obj", "-o", str(tmp_path / "o.obj"), *argv])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and argv[0] in err
+
+
+def test_readme_option_table_is_the_generated_one():
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    assert markdown_table() in readme
+
+
+def test_api_terms_become_flags():
+    assert to_cli_terms("use geodesics='landmarks' (or 'auto')") == "use --geodesics landmarks (or 'auto')"
+    assert to_cli_terms("try fill='none', then refine=none;") == "try --fill none, then --refine none;"
+    assert to_cli_terms("mass='lumped' stays") == "mass='lumped' stays"  # no flag: kept in API terms
+
+
+def test_help_imports_no_numerics():
+    code = ("import sys, heatparam.cli as c; c.build_parser().format_help(); "
+            "print(sorted(m for m in ('numpy', 'scipy', 'igl', 'trimesh', 'matplotlib') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
