@@ -17,6 +17,8 @@ from heatparam.errors import HeatparamError
 from heatparam.options import Option, check_value, cli_options, help_text, make_options, to_cli_terms
 
 EXIT_BAD_INPUT = 2
+#: the model units the outputs can declare (``formats.units``; listed here so that --help loads nothing)
+UNITS = ("mm", "cm", "m", "in", "ft")
 #: options shared by ``unwrap`` and ``geodesics`` (the heat method's own)
 HEAT_OPTIONS = ("time_step", "t_coef", "solver")
 
@@ -45,6 +47,16 @@ def _parse_value(opt: Option):
     return parse
 
 
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+    if not (value > 0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
+    return value
+
+
 def _add_option(p: argparse.ArgumentParser, opt: Option) -> None:
     kw: dict = {"default": opt.default, "help": help_text(opt).replace("%", "%%") + " (default: %(default)s)"}
     if opt.kind == "choice":
@@ -67,8 +79,22 @@ def build_parser() -> argparse.ArgumentParser:
     u = sub.add_parser("unwrap", help="flatten a mesh and write an OBJ with UVs",
                        description="Flatten a disk-like mesh (with holes) into the plane at true scale.")
     u.add_argument("input", help="mesh file (.obj .off .ply .stl .glb)")
-    u.add_argument("-o", "--output", required=True, help="output OBJ (v in input order; one vt per vertex, or per "
-                   "seam side when the map has seams)")
+    u.add_argument("-o", "--output", required=True, action="append", metavar="OUT",
+                   help="output file, may be given several times; the format follows the extension: .obj (v in "
+                        "input order; one vt per vertex, or per seam side when the map has seams), .ply and .glb "
+                        "(the map as texture coordinates; GLB with a checker texture), .dxf and .svg (flat "
+                        "pattern: outline, holes, seams, annotations), .step/.stp (trimmed B-spline faces)")
+    u.add_argument("--units", choices=UNITS, default="mm",
+                   help="the model's units, stated in every output (DXF $INSUNITS, SVG physical size, STEP) "
+                        "(default: %(default)s)")
+    u.add_argument("--sheet", metavar="WxH",
+                   help="DXF/SVG: arrange the charts on sheets of this size (model units), as many as needed, "
+                        "framed on layer SHEET; a chart larger than the sheet is refused")
+    u.add_argument("--strain-map", action="store_true",
+                   help="SVG: fill the faces by isometric distortion, with a legend")
+    u.add_argument("--fit-tolerance", type=_positive, metavar="TOL",
+                   help="STEP: largest distance of the B-spline surface from the mesh's vertices (model units; "
+                        "default: 0.1%% of the bounding-box diagonal)")
     for opt in cli_options():
         _add_option(u, opt)
     u.add_argument("--report", metavar="R.json", help="write a JSON report (parameters, timings, metrics)")
@@ -116,16 +142,26 @@ def _check_output(path: str, inputs: tuple[str, ...], suffix: str) -> Path:
 def cmd_unwrap(args: argparse.Namespace) -> int:
     from heatparam.formats import load_mesh
     from heatparam.pipeline import parameterize
-    from heatparam.unwrap import write_results
+    from heatparam.unwrap import plan, write_outputs
 
-    out = _check_output(args.output, (args.input,), ".obj")
-    rep = _check_output(args.report, (args.input, args.output), ".json") if args.report else None
-    prev = _check_output(args.preview, (args.input, args.output), ".png") if args.preview else None
+    plans = plan(args.output, args.report, args.preview, inputs=(args.input,))
+    sheet = None
+    if args.sheet:
+        from heatparam.formats.pattern import parse_sheet
+
+        sheet = parse_sheet(args.sheet)
+    formats = {pl.format for pl in plans}
+    for flag, used, where in (("--sheet", args.sheet, ("dxf", "svg")), ("--strain-map", args.strain_map, ("svg",)),
+                              ("--fit-tolerance", args.fit_tolerance, ("step",))):
+        if used and not formats & set(where):
+            print(f"heatparam: warning: {flag} applies to {' and '.join('.' + w for w in where)} outputs only "
+                  "(none requested)", file=sys.stderr)
     V, F = load_mesh(args.input)
     opts = make_options(progress=not args.quiet, **{o.name: getattr(args, o.name) for o in cli_options()})
     result = parameterize(V, F, opts)
     result.report["input"] = str(args.input)
-    write_results(V, F, result, out, rep, prev, quiet=args.quiet)
+    write_outputs(V, F, result, plans, units=args.units, sheet=sheet, strain_map=args.strain_map, quiet=args.quiet,
+                  fit_tolerance=args.fit_tolerance)
     return 0
 
 

@@ -24,6 +24,9 @@ def atomic_write(path: str | os.PathLike, mode: str = "w"):
         raise HeatparamError(f"cannot write {p}: folder {p.parent} does not exist")
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
     try:
+        from heatparam.formats.outputs import file_mode
+
+        os.chmod(tmp, file_mode())  # mkstemp makes 0600: outputs get 0666 & ~umask like any program's
         with os.fdopen(fd, mode) as fh:
             yield fh
         os.replace(tmp, p)
