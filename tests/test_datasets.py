@@ -249,7 +249,7 @@ def test_other_resolutions_valid(name, h):
 def test_mesh_domain_boundary_segments_are_edges():
     h = 0.1
     outer = S.polygon(np.array([[0, 0], [2, 0], [2, 1], [0, 1]]), h)
-    hole = S._circle((1.0, 0.5), 0.25, h, clockwise=True)
+    hole = S.circle((1.0, 0.5), 0.25, h, clockwise=True)
     uv, F = S.mesh_domain([outer, hole], h)
     index = {tuple(p): k for k, p in enumerate(uv.tolist())}
     E = {tuple(e) for e in edges(F).tolist()}

@@ -59,6 +59,7 @@ def test_batched_equals_single_and_all_pairs_symmetric(disk):
     assert np.array_equal(D, D.T)
 
 
+@pytest.mark.slow
 def test_camelhead_vs_exact_geodesics():
     V, F = igl.read_triangle_mesh(str(shared_mesh("camelhead.off")))
     s = _solver(V, F)

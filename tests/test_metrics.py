@@ -264,7 +264,7 @@ def test_segment_crossings_match_brute_force():
             steps = rng.standard_normal((n, 2)) * np.where(rng.random((n, 1)) < 0.05, 30.0, 0.01)
             P = np.cumsum(steps, axis=0)
             E = np.column_stack([np.arange(n), (np.arange(n) + 1) % n])
-        assert M._segment_crossings(P, E) == brute_crossings(P, E), trial
+        assert M.segment_crossings(P, E) == brute_crossings(P, E), trial
 
 
 # ---------------------------------------------------------------------------------------------------------

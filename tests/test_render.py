@@ -107,7 +107,7 @@ def test_scale_bar_and_checker_sizes_are_round():
 
 
 def test_headline_numbers():
-    text = render._headline({"iso_mean": 1.23456, "iso_p95": 1.5, "flips": 0, "boundary_crossings": 2}, 3, None)
+    text = render.headline({"iso_mean": 1.23456, "iso_p95": 1.5, "flips": 0, "boundary_crossings": 2}, 3, None)
     for s in ("iso mean 1.2346", "p95 1.5000", "flipped 0", "boundary crossings 2", "charts 3"):
         assert s in text
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -67,14 +68,22 @@ def _add_option(p: argparse.ArgumentParser, opt: Option) -> None:
     p.add_argument(opt.flag, dest=opt.name, **kw)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line error (no usage block): ``heatparam: error: <what>; see heatparam <cmd> --help``."""
+
+    def error(self, message: str):
+        cmd = self.prog.split()[-1] if " " in self.prog else ""
+        self.exit(EXIT_BAD_INPUT, f"heatparam: error: {message} (see heatparam {cmd + ' ' if cmd else ''}--help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(
+    ap = _Parser(
         prog="heatparam",
         description="Near-isometric (true-scale) mesh parameterization: heat-method geodesics + MDS "
                     "(Mejia-Parra et al. 2019).",
     )
     ap.add_argument("--version", action="version", version=f"heatparam {__version__}")
-    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
 
     u = sub.add_parser("unwrap", help="flatten a mesh and write an OBJ with UVs",
                        description="Flatten a disk-like mesh (with holes) into the plane at true scale.")
@@ -183,7 +192,10 @@ def cmd_geodesics(args: argparse.Namespace) -> int:
     D, warning = geodesic_distances(V, F, sources, args.time_step, args.t_coef, args.solver)
     if warning:
         print(f"heatparam: warning: {to_cli_terms(warning)}", file=sys.stderr)
-    save_npy(out, D)
+    from heatparam import interrupt
+
+    with interrupt.deferred():
+        save_npy(out, D)
     if not args.quiet:
         unreached = int((~(D < float("inf"))).all(axis=1).sum())
         extra = f" ({unreached} unreferenced vertices: inf)" if unreached else ""
@@ -203,7 +215,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         raise HeatparamError(f"{args.input}: texture coordinate index out of range")
     summary = metrics.summary(V, F, UV, FUV)
     if rep is not None:
-        save_json(rep, {"input": str(args.input), "metrics": summary})
+        from heatparam import interrupt
+
+        with interrupt.deferred():
+            save_json(rep, {"input": str(args.input), "metrics": summary})
     if not args.quiet:
         print(json.dumps(summary, indent=2))
     return 0
@@ -230,18 +245,41 @@ COMMANDS = {"unwrap": cmd_unwrap, "geodesics": cmd_geodesics, "evaluate": cmd_ev
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    """Run one command; returns the exit code (0, 2 for bad input, 130 when interrupted).
+
+    A SIGINT handler (``interrupt.handling``) is installed first, so Ctrl-C at any moment — in an import that
+    swallows ``KeyboardInterrupt`` too — ends with one line, exit code 130 and nothing written. The console script
+    enters through ``heatparam.__main__.main``, which installs it before this module's imports.
+    """
+    from heatparam import interrupt
+
+    with interrupt.handling():
+        try:
+            args = build_parser().parse_args(argv)
+            code = _run(args)
+            if interrupt.interrupted():  # it came while the outputs were being written: they were completed
+                print("heatparam: interrupted while writing the outputs: they were completed first", file=sys.stderr)
+            return code
+        except KeyboardInterrupt:
+            print("heatparam: interrupted (no output written)", file=sys.stderr)
+            return 130
+
+
+def _run(args: argparse.Namespace) -> int:
     try:
         return COMMANDS[args.command](args)
     except HeatparamError as exc:
         print(f"heatparam: error: {to_cli_terms(str(exc))}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print("heatparam: interrupted (no output written)", file=sys.stderr)
-        return 130
     except MemoryError:
         print("heatparam: error: out of memory — use --geodesics landmarks or a smaller --landmarks",
               file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except Exception as exc:  # noqa: BLE001 - a failure no stage anticipated: one line, never a traceback
+        if os.environ.get("HEATPARAM_DEBUG"):
+            raise
+        print(f"heatparam: error: the computation failed ({type(exc).__name__}) — the mesh may be too degenerate; "
+              "set HEATPARAM_DEBUG=1 to see where, and please report it", file=sys.stderr)
         return EXIT_BAD_INPUT
 
 

@@ -40,6 +40,7 @@ __all__ = [
     "layout_error",
     "layout_rmse",
     "noisy_scan_part",
+    "circle",
     "polygon",
     "lift_sphere",
     "mesh_domain",
@@ -123,7 +124,7 @@ def _arc(
     return np.asarray(center, dtype=np.float64) + radius * np.column_stack([np.cos(t), np.sin(t)])
 
 
-def _circle(center: tuple[float, float], radius: float, h: float, clockwise: bool = False) -> np.ndarray:
+def circle(center: tuple[float, float], radius: float, h: float, clockwise: bool = False) -> np.ndarray:
     """Closed loop on a circle, (k,2), counter-clockwise unless ``clockwise``."""
     pts = _arc(center, radius, 0.0, 2 * np.pi, h, min_n=8)
     return pts[::-1].copy() if clockwise else pts
@@ -405,8 +406,8 @@ def cylinder_with_holes(
         ]
     )
     holes = [
-        _circle((0.25 * w, 0.65 * height), hole_radii[0], h, clockwise=True),
-        _circle((0.78 * w, 0.5 * height), hole_radii[1], h, clockwise=True),
+        circle((0.25 * w, 0.65 * height), hole_radii[0], h, clockwise=True),
+        circle((0.78 * w, 0.5 * height), hole_radii[1], h, clockwise=True),
     ]
     uv, F = mesh_domain([polygon(outer, h), *holes], h)
     uv = uv - np.array([w / 2, height / 2])
@@ -493,7 +494,7 @@ def curved_cap_with_holes(
 
 def flat_disk(radius: float = 1.0, h: float = 0.04) -> Shape:
     """Planar disk (z = 0, ``uv_true = V[:, :2]``). Defaults: ~2.3k vertices, one boundary loop."""
-    uv, F = mesh_domain([_circle((0.0, 0.0), radius, h)], h)
+    uv, F = mesh_domain([circle((0.0, 0.0), radius, h)], h)
     return Shape(np.column_stack([uv, np.zeros(len(uv))]), F, uv, "flat_disk")
 
 
@@ -605,8 +606,8 @@ def noisy_scan_part(scale: float = 100.0, noise: float = 0.1, h: float = 0.03, s
         the same units (the answer up to noise), name ``"noisy_scan_part"``.
     """
     w, height = 2.4, 1.8
-    holes = [_circle((0.25 * w, 0.65 * height), 0.3, h, clockwise=True),
-             _circle((0.72 * w, 0.4 * height), 0.35, h, clockwise=True)]
+    holes = [circle((0.25 * w, 0.65 * height), 0.3, h, clockwise=True),
+             circle((0.72 * w, 0.4 * height), 0.35, h, clockwise=True)]
     uv, F = mesh_domain([polygon(np.array([[0, 0], [w, 0], [w, height], [0, height]]), h), *holes], h)
     uv = (uv - np.array([w / 2, height / 2])) * scale
     V = bend_cylinder(uv, scale)

@@ -45,6 +45,9 @@ THREADS_MAX_VERTICES = 100_000
 #: source (measured: 0.95-1.0 per √t on flat disks and strips). Below ~1e-300 doubles lose it (denormals, then 0):
 #: ∇u vanishes and the distances there are garbage. The default t keeps d/√t ≤ DECAY_RANGE over the whole surface.
 DECAY_RANGE = 600.0
+#: An explicit time step whose diffusion length √t exceeds this many diameter bounds is refused: the heat then
+#: spreads over the whole surface in one step and its gradient carries no direction.
+TIME_MAX_SPAN = 100.0
 
 
 def diameter_bound(op: Operators) -> float:
@@ -81,7 +84,14 @@ def time_step(op: Operators, mode: str | float = "default", coef: float = 1.0, u
     if isinstance(mode, (int, float)) and not isinstance(mode, bool):
         if not mode > 0:
             raise ValueError(f"time step must be positive, got {mode}")
-        return float(mode) / unit**2  # a time has units of length²
+        t = float(mode) / unit**2  # a time has units of length²
+        if t > (TIME_MAX_SPAN * diameter_bound(op)) ** 2:
+            from heatparam.errors import HeatparamError
+
+            raise HeatparamError(f"time_step={float(mode):g} is far too large for this surface (its heat spreads "
+                                 f"over more than {TIME_MAX_SPAN:g} × the surface's size in one step, so the "
+                                 "distances carry no information) — use time_step='default'")
+        return t
     if mode == "default":
         return max(coef * op.mean_edge**2, min_time_step(op))
     if mode == "paper":
@@ -121,10 +131,16 @@ class HeatGeodesics:
         self.t = float(t)
         self.n = op.L.shape[0]
         backend = large_system_backend(self.n, backend, PARDISO_MIN_VERTICES)
-        self.heat = Factor((self.t * op.L + op.B).tocsc(), backend)  # Eq. 4
-        # Eq. 10: L is singular (constants); its right-hand side sums to zero, so pinning vertex 0 and
-        # solving the reduced SPD system gives the exact solution up to the constant fixed afterwards.
-        self.poisson = Factor(op.L[1:, 1:].tocsc(), self.heat.backend)
+        try:
+            self.heat = Factor((self.t * op.L + op.B).tocsc(), backend)  # Eq. 4
+            # Eq. 10: L is singular (constants); its right-hand side sums to zero, so pinning vertex 0 and
+            # solving the reduced SPD system gives the exact solution up to the constant fixed afterwards.
+            self.poisson = Factor(op.L[1:, 1:].tocsc(), self.heat.backend)
+        except (ValueError, RuntimeError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            from heatparam.errors import HeatparamError
+
+            raise HeatparamError(f"the heat method's systems could not be factorized ({str(exc).splitlines()[0]}): "
+                                 "is the mesh degenerate, or the time step extreme? (time_step='default')") from None
         self.backend = self.heat.backend
         self._lock = threading.Lock()
         self.block = int(max(1, min(MAX_BLOCK, block_bytes // (_BYTES_PER_COLUMN_VERTEX * self.n))))

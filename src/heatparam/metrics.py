@@ -415,7 +415,7 @@ def _candidate_pairs(A: np.ndarray, B: np.ndarray, ids: np.ndarray, h: float, de
     out.append(_pairs_in_groups(edges, starts, counts))
 
 
-def _segment_crossings(P: np.ndarray, E: np.ndarray) -> int:
+def segment_crossings(P: np.ndarray, E: np.ndarray) -> int:
     """Pairs of segments ``P[E[i]]`` that properly cross or overlap collinearly (shared indices skipped)."""
     P = np.asarray(P, dtype=np.float64)
     E = np.asarray(E, dtype=np.int64)
@@ -485,7 +485,7 @@ def boundary_crossings(uv: np.ndarray, F: np.ndarray) -> int:
     uv = _points(uv, 2, "uv")
     F = _faces(F, len(uv), "F")
     _check_finite(uv, F, "uv")
-    return _segment_crossings(uv, boundary_edges(F))
+    return segment_crossings(uv, boundary_edges(F))
 
 
 # ----------------------------------------------------------------------------------------------------------

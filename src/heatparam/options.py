@@ -118,7 +118,7 @@ OPTIONS: tuple[Option, ...] = (
            "of Eq. 1 on the geodesic distances MDS used, applied to the MDS layout before refine (BENCHMARKS.md "
            "§7); none = the MDS layout as is", STRESS_MODES, flag="--stress"),
     Option("refine_multilevel", MULTILEVEL_MIN_VERTICES, "int", "meshes of at least N vertices are polished "
-           "coarse-to-fine (a ~1/8-size coarse mesh first; docs/refine.md); 0 = never", low=0,
+           "coarse-to-fine (a ~1/8-size coarse mesh first; docs/refine.md); 0 = never", low=0, high=2**40,
            flag="--refine-multilevel", metavar="N"),
     Option("refine_iters", 200, "int", "iteration cap of the symmetric Dirichlet polish", low=0, high=100_000),
     Option("refine_tol", 1e-6, "float", "the polish stops when an iteration lowers the energy by less than this "
@@ -168,7 +168,8 @@ def _number(opt: Option, value: Any, kind: type, positive: bool) -> Any:
     if opt.high is None and opt.low is not None and value < opt.low:
         raise HeatparamError(f"{opt.name} must be at least {opt.low:g}; got {value!r}")
     if (opt.low is not None and value < opt.low) or (opt.high is not None and value > opt.high):
-        raise HeatparamError(f"{opt.name} must be between {opt.low:g} and {opt.high:g}; got {value!r}")
+        lo, hi = (f"{int(b)}" if kind is int else f"{b:g}" for b in (opt.low, opt.high))
+        raise HeatparamError(f"{opt.name} must be between {lo} and {hi}; got {value!r}")
     return kind(value)
 
 

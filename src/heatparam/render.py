@@ -337,7 +337,7 @@ def draw_checker_3d(ax, V: np.ndarray, F: np.ndarray, uv: np.ndarray, cells: int
                  fontsize=10)
 
 
-def _headline(metrics: dict, charts: int, edges: MapEdges | None) -> str:
+def headline(metrics: dict, charts: int, edges: MapEdges | None) -> str:
     def num(key: str, fmt: str) -> str:
         v = metrics.get(key)
         return "n/a" if v is None else format(v, fmt)
@@ -391,7 +391,7 @@ def save_preview(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.n
     show_charts = chart is not None and charts > 1
     n = 2 + show_charts + (2 if fill_surface is not None else 0)
     plt, fig, axes = _figure(n, extra_height=0.5)
-    fig.suptitle(f"{title + chr(10) if title else ''}{_headline(metrics, charts, edges)}", fontsize=11)
+    fig.suptitle(f"{title + chr(10) if title else ''}{headline(metrics, charts, edges)}", fontsize=11)
     draw_layout(axes[0], F, uv, pf.iso, pf.flipped, units=units, edges=edges,
                 title=f"UV layout{f' ({units})' if units else ''}: isometric distortion")
     k = 1

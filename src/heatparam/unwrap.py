@@ -58,7 +58,10 @@ def write_outputs(V, F, result, plans, units: str = DEFAULT_UNITS, sheet=None, s
     order = sorted(plans, key=lambda pl: pl.format == "json")  # the report last: it lists the other outputs
     report["outputs"] = written
     ctx = {"units": units, "pattern": pattern, "strain_map": strain_map, "fit_tolerance": fit_tolerance}
-    commit_outputs([(pl.path, recorded(pl, _writer(pl.format, V, F, result, ctx))) for pl in order])
+    from heatparam import interrupt
+
+    with interrupt.deferred():  # all the outputs or none: an interrupt waits until they are complete
+        commit_outputs([(pl.path, recorded(pl, _writer(pl.format, V, F, result, ctx))) for pl in order])
     if not quiet:
         m = report["metrics"]
         names = ", ".join(str(pl.path) for pl in plans)

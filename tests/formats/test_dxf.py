@@ -4,14 +4,6 @@ at true scale, $INSUNITS, seams labelled on both sides, charts apart, sheets."""
 import ezdxf
 import numpy as np
 import pytest
-from formats_cases import (
-    cylinder_map,
-    edge_stretch_bounds,
-    halftunnel_map,
-    polyline_length,
-    two_chart_atlas,
-    write_off,
-)
 from matplotlib.path import Path
 
 from heatparam.cli import main
@@ -20,6 +12,15 @@ from heatparam.formats.dxf import write_dxf
 from heatparam.formats.pattern import build_pattern, layout_charts
 from heatparam.formats.units import UNITS
 from heatparam.mesh.topology import boundary_edges, boundary_loops
+
+from formats_cases import (
+    cylinder_map,
+    edge_stretch_bounds,
+    halftunnel_map,
+    polyline_length,
+    two_chart_atlas,
+    write_off,
+)
 
 
 def read(path):

@@ -6,9 +6,10 @@ import struct
 import numpy as np
 import pytest
 import trimesh
-from formats_cases import cylinder_map, halftunnel_map, write_off
 
 from heatparam.cli import main
+
+from formats_cases import cylinder_map, halftunnel_map, write_off
 
 
 @pytest.mark.parametrize("case", ["cylinder", "halftunnel"])

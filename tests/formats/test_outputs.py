@@ -8,13 +8,14 @@ import sys
 from pathlib import Path
 
 import pytest
-from formats_cases import cylinder_map, write_off
 
 from heatparam import formats
 from heatparam.cli import main
 from heatparam.errors import HeatparamError
 from heatparam.formats import outputs
 from heatparam.formats.outputs import commit_outputs, plan_outputs
+
+from formats_cases import cylinder_map, write_off
 
 
 @pytest.fixture()
@@ -67,10 +68,10 @@ def unwritable_folder(tmp_path) -> Path:
     d = tmp_path / "ro"
     d.mkdir()
     d.chmod(0o555)
-    if outputs._can_create(d):
+    if outputs.can_create(d):
         d.chmod(0o755)
         d = Path("/sys")
-        if not d.is_dir() or outputs._can_create(d):
+        if not d.is_dir() or outputs.can_create(d):
             pytest.skip("no unwritable folder available here")
     return d
 

@@ -5,12 +5,13 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
-from formats_cases import cylinder_map, edge_stretch_bounds, halftunnel_map, polyline_length, two_chart_atlas, write_off
 
 from heatparam.cli import main
 from heatparam.formats.pattern import build_pattern, layout_charts
 from heatparam.formats.svg import write_svg
 from heatparam.mesh.topology import boundary_loops
+
+from formats_cases import cylinder_map, edge_stretch_bounds, halftunnel_map, polyline_length, two_chart_atlas, write_off
 
 cairosvg = pytest.importorskip("cairosvg")
 Image = pytest.importorskip("PIL.Image")

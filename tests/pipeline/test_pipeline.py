@@ -93,6 +93,7 @@ def test_default_pipeline_deterministic():
     assert np.array_equal(a, b)
 
 
+@pytest.mark.slow
 def test_default_pipeline_reproducible_across_processes():
     """The same input and seed give a bit-identical map in two fresh processes, with the default backends
     (camelhead: PARDISO's threaded factorization gave a different map in every run before MKL's conditional
@@ -144,6 +145,7 @@ def test_explicit_heat_options_are_never_skipped():
         assert "geodesics" in rep["timings_s"], kw
 
 
+@pytest.mark.slow
 def test_folded_coarse_mds_skips_the_heat_stage_same_map(monkeypatch):
     """camelhead (MDS folds): with the fold check on at its size, the MDS of a coarse mesh folds too, so the full
     heat stage is skipped and the map is bit-identical to the one computed with it (the start is LSCM either way)."""

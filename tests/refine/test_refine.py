@@ -190,6 +190,7 @@ def test_camelhead_bijective():
     _check_bijective(*_load("camelhead.off"))
 
 
+@pytest.mark.slow
 def test_beetle_bijective():
     """20k vertices, 10 holes; ~15 s on 2 cores."""
     _check_bijective(*_load("beetle.off"))
@@ -390,6 +391,7 @@ def test_coarse_to_fine_on_a_surface_with_holes_is_bijective():
     assert start.bijectivity(y, s.F, g) == (0, 0)
 
 
+@pytest.mark.slow
 def test_multilevel_polish_matches_single_level():
     """camelhead↑45k (the size where coarse-to-fine starts by default): the same minimum as the plain polish, in
     fewer fine Newton iterations (measured 6 vs 15), bijective. ~20 s on 2 cores."""
@@ -455,6 +457,7 @@ def test_boundary_faces():
     assert not multilevel.boundary_faces(np.vstack([F, ear]), np.zeros(len(V), dtype=bool)).size
 
 
+@pytest.mark.slow
 def test_multilevel_polish_recurses_and_matches_single_level(monkeypatch):
     """Three levels (coarse-to-fine inside the coarse level) on camelhead.off from LSCM, thresholds lowered so that
     its 11k vertices get them: every level used, bijective, the same minimum as the plain polish."""

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from heatparam import interrupt
 from heatparam.errors import HeatparamError
 
 
@@ -29,6 +30,7 @@ def atomic_write(path: str | os.PathLike, mode: str = "w"):
         os.chmod(tmp, file_mode())  # mkstemp makes 0600: outputs get 0666 & ~umask like any program's
         with os.fdopen(fd, mode) as fh:
             yield fh
+        interrupt.check()  # an interrupt a library swallowed still leaves nothing written
         os.replace(tmp, p)
     except BaseException:
         with contextlib.suppress(OSError):

@@ -1,6 +1,12 @@
-"""Reading meshes: OBJ, OFF, PLY, STL (meshio, vertex order kept exactly: no merging, no reordering) and glTF/GLB
-scenes (trimesh). Quads and polygons are fan-triangulated. Plain triangle OBJs (``v x y z`` and three-corner ``f``
-lines) take a vectorized fast path that reads exactly what meshio reads, in less time (BENCHMARKS.md §4).
+"""Reading meshes.
+
+OBJ, OFF and STL load through heatparam's own tolerant readers (``formats.readers``: comments in any byte
+encoding, every OBJ index form, one-line errors naming the file and line); PLY through trimesh (meshio as
+fallback) with its header made ASCII; glTF/GLB scenes through trimesh. The vertex order is kept exactly (no
+merging, no reordering; STL excepted, whose identical corners are merged). Quads and polygons are fan-triangulated.
+Plain triangle OBJs (``v x y z`` and three-corner ``f`` lines) take a vectorized fast path that reads exactly what
+the general reader reads, in less time (BENCHMARKS.md §4). trimesh and meshio are imported only when a file needs
+them, through ``interrupt.guarded_import`` (trimesh's import swallows ``KeyboardInterrupt``).
 """
 
 from __future__ import annotations
@@ -13,7 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
+from heatparam import interrupt
 from heatparam.errors import HeatparamError
+from heatparam.formats import readers
 
 MESH_SUFFIXES = (".obj", ".off", ".ply", ".stl", ".glb", ".gltf")
 
@@ -41,10 +49,18 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     suffix = p.suffix.lower()
     if suffix not in MESH_SUFFIXES:
         raise HeatparamError(f"cannot read {p}: unsupported format {suffix!r} (use one of {', '.join(MESH_SUFFIXES)})")
-    # meshio keeps OBJ vertices exactly as written; trimesh (process=False, maintain_order=True) reads OFF/PLY
-    # polygons (meshio's OFF reader takes triangles only) and glTF scenes. The other library is the fallback.
-    loaders = [load_obj_fast, load_meshio, _load_trimesh] if suffix == ".obj" else [_load_trimesh, load_meshio]
-    if suffix in (".glb", ".gltf"):
+    # OBJ, OFF and STL: heatparam's own tolerant readers (``readers``; any byte encoding in comments, every OBJ
+    # index form), plain triangle OBJs through a vectorized fast path. PLY (its header made ASCII) and glTF go
+    # through trimesh (process=False, maintain_order=True: vertex order kept), meshio being the PLY fallback.
+    if suffix == ".obj":
+        loaders = [load_obj_fast, _load_obj]
+    elif suffix == ".off":
+        loaders = [readers.read_off]
+    elif suffix == ".stl":
+        loaders = [readers.read_stl]
+    elif suffix == ".ply":
+        loaders = [_load_trimesh, load_meshio]
+    else:
         loaders = [_load_trimesh]
     first_error = None
     for load in loaders:
@@ -55,9 +71,11 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
             continue
         except HeatparamError as exc:
             first_error = first_error or str(exc)
-        except Exception as exc:  # any parser failure is a bad file, reported in one line
-            msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            first_error = first_error or f"cannot read {p}: {msg} — is it a valid {suffix[1:].upper()} file?"
+        except MemoryError:
+            first_error = first_error or f"cannot read {p}: it announces more data than fits in memory"
+        except Exception:  # a library's parser failed: its text may name modules or codecs, so it is not shown
+            fmt = suffix[1:].upper()
+            first_error = first_error or f"cannot read {p}: not a valid {fmt} file (it could not be parsed)"
     else:
         raise HeatparamError(first_error)
     if suffix == ".stl":
@@ -78,12 +96,9 @@ def load_obj_fast(p: Path) -> tuple[np.ndarray, np.ndarray]:
     Gives exactly meshio's result (V in file order, parsed by Python's correctly rounded ``float``; faces in
     file order, each corner's vertex index being the part before the first ``/``), without meshio's
     per-line Python loop. Anything else (polygons, negative indices, other statements, odd whitespace) raises
-    :class:`NotSimpleObj` and the file goes to meshio.
+    :class:`NotSimpleObj` and the file goes to the general reader (``readers.read_obj``).
     """
-    try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise NotSimpleObj from None
+    text = readers.decode(p.read_bytes())
     if "\t" in text or "\r" in text or "\\" in text:
         raise NotSimpleObj
     v_lines, f_lines, attr = [], [], {"vt": [], "vn": []}
@@ -121,7 +136,7 @@ def load_obj_fast(p: Path) -> tuple[np.ndarray, np.ndarray]:
     except ValueError:
         raise NotSimpleObj from None
     if F.min() < 1:
-        raise NotSimpleObj  # relative (negative) or zero indices: meshio's own handling applies
+        raise NotSimpleObj  # relative (negative) or zero indices: the general reader resolves or refuses them
     return V, F - 1
 
 def _float_table(lines: list[str]) -> np.ndarray:
@@ -138,14 +153,20 @@ def _float_table(lines: list[str]) -> np.ndarray:
     except ValueError:
         raise NotSimpleObj from None
 
+def _load_obj(p: Path) -> tuple[np.ndarray, np.ndarray]:
+    return readers.read_obj(p)
+
 def load_meshio(p: Path) -> tuple[np.ndarray, np.ndarray]:
-    import meshio
+    meshio = interrupt.guarded_import("meshio")
 
     quiet = contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO())
     with warnings.catch_warnings(), quiet[0], quiet[1]:
         warnings.simplefilter("ignore")
         try:
-            m = meshio.read(p)
+            if p.suffix.lower() == ".ply":
+                m = meshio.read(io.BytesIO(readers.ply_ascii_header(p)), file_format="ply")
+            else:
+                m = meshio.read(p)
         except SystemExit:  # meshio's OFF reader exits on some parse errors instead of raising
             raise HeatparamError(f"cannot read {p}: not a valid {p.suffix[1:].upper()} file") from None
     V = np.asarray(m.points, dtype=np.float64)
@@ -159,12 +180,16 @@ def load_meshio(p: Path) -> tuple[np.ndarray, np.ndarray]:
     return V, F
 
 def _load_trimesh(p: Path) -> tuple[np.ndarray, np.ndarray]:
-    import trimesh
+    trimesh = interrupt.guarded_import("trimesh")
 
     quiet = contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO())
     with warnings.catch_warnings(), quiet[0], quiet[1]:
         warnings.simplefilter("ignore")
-        scene = trimesh.load(p, process=False, maintain_order=True, force="scene")
+        if p.suffix.lower() == ".ply":
+            src = {"file_obj": io.BytesIO(readers.ply_ascii_header(p)), "file_type": "ply"}
+        else:
+            src = {"file_obj": str(p)}
+        scene = trimesh.load(**src, process=False, maintain_order=True, force="scene")
     geoms = [g for g in scene.dump() if hasattr(g, "faces")]
     if not geoms:
         raise HeatparamError(f"cannot read {p}: the file holds no triangles")

@@ -97,7 +97,7 @@ def plan_outputs(paths: Sequence[str | os.PathLike | tuple[str | os.PathLike, Co
         if not parent.is_dir():
             what = "is not a folder" if parent.exists() else "does not exist"
             raise HeatparamError(f"cannot write {p}: folder {parent} {what}")
-        if not os.access(parent, os.W_OK | os.X_OK) or not _can_create(parent):
+        if not os.access(parent, os.W_OK | os.X_OK) or not can_create(parent):
             raise HeatparamError(f"cannot write {p}: folder {parent} is not writable")
         r = p.resolve()
         if r in ins:
@@ -109,7 +109,7 @@ def plan_outputs(paths: Sequence[str | os.PathLike | tuple[str | os.PathLike, Co
     return plans
 
 
-def _can_create(folder: Path) -> bool:
+def can_create(folder: Path) -> bool:
     """Whether a file can really be created in ``folder`` (os.access says yes to root on read-only trees)."""
     try:
         fd, tmp = tempfile.mkstemp(prefix=".heatparam-probe.", suffix=".tmp", dir=folder)

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from heatparam.errors import HeatparamError
+from heatparam.formats import readers
 from heatparam.formats.files import atomic_write
 
 
@@ -35,35 +36,34 @@ def load_uv_obj(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.nda
     if not p.is_file():
         raise HeatparamError(f"cannot read {p}: no such file")
     V, UV, F, FT = [], [], [], []
+    lineno = 0
     try:
-        with open(p, encoding="utf-8", errors="replace") as fh:
-            for line in fh:
-                s = line.split()
-                if not s:
-                    continue
-                if s[0] == "v":
-                    V.append([float(x) for x in s[1:4]])
-                elif s[0] == "vt":
-                    UV.append([float(x) for x in s[1:3]])
-                elif s[0] == "f":
-                    corners = [c.split("/") for c in s[1:]]
-                    if any(len(c) < 2 or not c[1] for c in corners):
-                        raise HeatparamError(f"{p}: a face has no texture coordinates (need 'f v/vt ...')")
-                    vi = [_obj_index(c[0], len(V)) for c in corners]
-                    ti = [_obj_index(c[1], len(UV)) for c in corners]
-                    for j in range(1, len(vi) - 1):
-                        F.append([vi[0], vi[j], vi[j + 1]])
-                        FT.append([ti[0], ti[j], ti[j + 1]])
-    except HeatparamError:
-        raise
+        for lineno, tok in readers.obj_lines(readers.decode(p.read_bytes())):  # noqa: B007 - read in except
+            if tok[0] == "v":
+                V.append([float(x) for x in tok[1:4]])
+            elif tok[0] == "vt":
+                UV.append([float(x) for x in tok[1:3]])
+            elif tok[0] == "f":
+                corners = [c.split("/") for c in tok[1:]]
+                if any(len(c) < 2 or not c[1] for c in corners):
+                    raise HeatparamError(f"{p}: a face has no texture coordinates (need 'f v/vt ...')")
+                vi = [_obj_index(c[0], len(V)) for c in corners]
+                ti = [_obj_index(c[1], len(UV)) for c in corners]
+                for j in range(1, len(vi) - 1):
+                    F.append([vi[0], vi[j], vi[j + 1]])
+                    FT.append([ti[0], ti[j], ti[j + 1]])
     except (ValueError, IndexError) as exc:
-        raise HeatparamError(f"cannot read {p}: malformed OBJ line ({exc})") from None
+        if isinstance(exc, HeatparamError):
+            raise
+        raise HeatparamError(f"cannot read {p} (line {lineno}): malformed OBJ line (a number or index expected)"
+                             ) from None
     if not UV:
         raise HeatparamError(f"{p} has no texture coordinates (vt lines) to evaluate")
     if not F:
         raise HeatparamError(f"cannot read {p}: the file holds no faces")
     return (np.asarray(V, dtype=np.float64), np.asarray(F, dtype=np.int64),
             np.asarray(UV, dtype=np.float64), np.asarray(FT, dtype=np.int64))
+
 
 def _obj_index(tok: str, count: int) -> int:
     i = int(tok)

@@ -86,7 +86,10 @@ def conformal_layout(V: np.ndarray, F: np.ndarray, outer: np.ndarray, backend: s
     if large_system_backend(2 * len(V), backend) == "pardiso":
         uv = lscm(V, F, pins, pin_uv, backend="pardiso")
     else:
-        uv, _ = igl.lscm(V, F, pins, pin_uv)
+        try:
+            uv, _ = igl.lscm(V, F, pins, pin_uv)
+        except RuntimeError:  # "igl::lscm failed": its solver gave up on degenerate faces (thin limbs, slivers)
+            raise HeatparamError("the conformal (LSCM) layout failed: is the mesh degenerate?") from None
     uv = np.asarray(uv, dtype=np.float64)
     if not np.isfinite(uv).all():
         raise HeatparamError("the conformal (LSCM) layout failed: is the mesh degenerate?")

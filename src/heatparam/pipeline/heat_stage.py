@@ -161,7 +161,7 @@ def geodesic_layout(V: np.ndarray, F: np.ndarray, params: HeatParams, prog: Prog
     rng = np.random.default_rng(params.seed)
     if mode == "all-pairs" and points is None:
         return _all_pairs_layout(solver, n, params, prog, rng, (mode, t, op.mollify_eps, warning))
-    k = n if mode == "all-pairs" else (params.landmarks or default_landmarks(n))
+    k = n if mode == "all-pairs" else min(n, params.landmarks or default_landmarks(n))  # never more than vertices
     with prog.stage("geodesics"), prog.bar(k + 1, "landmark geodesics", "src") as bar:
         if k >= n:
             lm = np.arange(n)

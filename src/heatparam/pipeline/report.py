@@ -32,8 +32,11 @@ def map_metrics(V: np.ndarray, F: np.ndarray, uv: np.ndarray, prog: Progress, la
     """The map's metrics; the sampled Eq. 1 stress against the geodesics when they were computed (else None)."""
     with prog.stage("metrics"):
         summary = metrics.summary(V, F, uv)
-        summary["stress_rel_rms"] = (metrics.stress(uv, layout.D_points, layout.stress_columns)
-                                     if layout is not None else None)
+        try:
+            summary["stress_rel_rms"] = (metrics.stress(uv, layout.D_points, layout.stress_columns)
+                                         if layout is not None else None)
+        except ValueError:  # no finite geodesic distance (degenerate faces): the stress is undefined, not fatal
+            summary["stress_rel_rms"] = None
     return summary
 
 

@@ -94,12 +94,16 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefinePa
     g, area = surface if surface is not None else surface_gradients(V, F)
     x, start = choose_start(V, F, uv, disk, g, area, lscm, conformal, params.solver)
     report: dict = {"method": "sd", "holes": len(disk.holes), "start": start}
+    x_start = x
     # One OpenBLAS thread: the polish's vector work is small, and OpenBLAS threads on it cost 10-60% on 2 cores
     # (2.2 s vs 2.5 s on camelhead alone, 6.2 s with another process busy). MKL (PARDISO) keeps its threads.
     with ThreadpoolController().select(internal_api="openblas").limit(limits=1):
         x, pinfo, report["multilevel"] = multilevel_polish(V, F, x, loops, g, area, min_vertices=params.multilevel,
                                                            max_iters=params.max_iters, tol=params.tol,
                                                            backend=params.solver, progress=progress)
+    if not np.isfinite(x).all():  # the start is bijective and finite: keep it rather than hand NaN on
+        x = x_start
+        pinfo["fallback"] = "the polish produced non-finite coordinates: the start layout is kept"
     pinfo["method"] = "projected-newton + scaffold"
     report["polish"] = pinfo
     report["flips"] = int((det(jacobians(x, F, g)) <= 0).sum())

@@ -204,7 +204,16 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
             stop = f"scaffold failed: {exc}"
             break
         hist.append(Es)
-        dx, fac, fresh = newton_direction(sy.H, sy.rhs, fac, backend)
+        try:
+            if not (np.isfinite(sy.H.data).all() and np.isfinite(sy.rhs).all()):
+                raise FloatingPointError("non-finite Hessian")
+            dx, fac, fresh = newton_direction(sy.H, sy.rhs, fac, backend)
+        except Exception as exc:  # noqa: BLE001 - any solver failure (PARDISO -4, CHOLMOD not PD) on degenerate faces
+            stop = f"numerical failure ({type(exc).__name__}): the last bijective layout is kept"
+            break
+        if not np.isfinite(dx).all():
+            stop = "numerical failure (non-finite Newton step): the last bijective layout is kept"
+            break
         refactorizations += fresh
         # Newton decrement: the quadratic model's predicted decrease. Negligible (far below tol, so that a stiff
         # scaffold holding boundary vertices back cannot fake it) means the start is already the minimum: e.g. the

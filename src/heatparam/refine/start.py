@@ -78,6 +78,8 @@ def lscm_start(V: np.ndarray, F: np.ndarray, conformal: Callable[[], np.ndarray]
         xl = np.array(conformal() if conformal is not None else conformal_start(V, F, build_disk(V, F)))
     except HeatparamError as exc:  # a degenerate mesh: LSCM is only a candidate start, MDS or Tutte still serve
         return LscmStart(None, -1, -1, None, str(exc))
+    if not np.isfinite(xl).all():  # never hand NaN on: the candidate is dropped, MDS or Tutte still serve
+        return LscmStart(None, -1, -1, None, "the LSCM layout has non-finite coordinates")
     flips, cross = bijectivity(xl, F, g)
     e = normalized_energy(xl, F, g, area) if flips == 0 and cross == 0 else None
     return LscmStart(xl, flips, cross, e)
@@ -98,9 +100,13 @@ def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk
         report: dict = {"mds": "not computed (the pipeline's method.geodesics says why)"}
     else:
         x = np.asarray(uv, dtype=np.float64)
-        flips, cross = bijectivity(x, F, g)
+        finite = bool(np.isfinite(x).all())
+        flips, cross = bijectivity(x, F, g) if finite else (-1, -1)
         report = {"flips": flips, "crossings": cross}
-        if flips:  # crossings are only counted when nothing is flipped; a repaired layout has none
+        if not finite:  # degenerate faces can make the heat geodesics, hence MDS, non-finite: not a candidate
+            report["mds_rejected"] = "non-finite coordinates"
+            x = None
+        elif flips:  # crossings are only counted when nothing is flipped; a repaired layout has none
             x, report["repair"] = repaired_layout(x, F, g, disk.loops)
             cross = 0
         if x is not None and not cross:
@@ -118,5 +124,10 @@ def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk
         report["energy"] = energies
     else:
         x, start = tutte(V, disk, backend)[: len(V)], "tutte"
+    if not np.isfinite(x).all():
+        x, start = tutte(V, disk, backend)[: len(V)], "tutte"
+    if not np.isfinite(x).all():
+        raise HeatparamError("the refinement's start layouts (MDS, LSCM, Tutte) all have non-finite coordinates: "
+                             "is the mesh degenerate?")
     report["layout"] = start
     return x, report

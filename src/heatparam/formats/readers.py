@@ -1,0 +1,322 @@
+"""Tolerant readers for the text formats (OBJ, OFF, ASCII/binary STL) and the PLY header, with one-line errors.
+
+Comments and names may be in any byte encoding (Latin-1 from European or Windows exporters, UTF-8, junk): the
+bytes are decoded as UTF-8 where valid and as Latin-1 otherwise, which never fails; numbers and keywords are
+ASCII in every encoding. Every error is a :class:`~heatparam.errors.HeatparamError` of one line that names the
+file, the line and the problem.
+
+OBJ: ``v`` (2 or more coordinates; the first three are used, a missing z is 0), ``f`` with ``v``, ``v/vt``,
+``v//vn`` or ``v/vt/vn`` corners, positive and negative (relative) indices, polygons fan-triangulated, ``\\`` line
+continuations, ``#`` comments; every other statement (``vt``, ``vn``, ``o``, ``g``, ``s``, ``usemtl``,
+``mtllib``, ``l``, ``p``, free-form geometry) is skipped.
+OFF: the ``[ST][C][N]OFF`` headers (per-vertex extras and per-face colours ignored), counts on the header line or
+the next, polygons fan-triangulated; binary, 4D and n-dimensional OFF are refused.
+STL: binary (recognized by its size: 84 + 50 bytes per triangle) or ASCII (``vertex x y z`` triples).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from heatparam.errors import HeatparamError
+
+
+def decode(data: bytes) -> str:
+    """Bytes → text: UTF-8 (a byte-order mark dropped) where valid, else Latin-1 (every byte is a character)."""
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
+
+
+def _shown(tok: str, limit: int = 24) -> str:
+    """A token as it may appear in a one-line message: printable ASCII, quoted, truncated."""
+    s = "".join(c if 32 <= ord(c) < 127 else "?" for c in tok)
+    return repr(s[:limit] + ("…" if len(s) > limit else ""))
+
+
+def _fail(p: Path, what: str, lineno: int | None = None) -> HeatparamError:
+    where = f" (line {lineno})" if lineno is not None else ""
+    return HeatparamError(f"cannot read {p}{where}: {what}")
+
+
+def _fan(corners: list[int]) -> list[list[int]]:
+    return [[corners[0], corners[j], corners[j + 1]] for j in range(1, len(corners) - 1)]
+
+
+def _read_bytes(p: Path) -> bytes:
+    try:
+        return p.read_bytes()
+    except OSError as exc:
+        raise _fail(p, exc.strerror or "the file cannot be opened") from None
+
+
+# ----------------------------------------------------------------------------------------------------------
+# OBJ
+# ----------------------------------------------------------------------------------------------------------
+def obj_lines(text: str):
+    """(line number, tokens) of the statements of an OBJ text: comments dropped, continuations joined."""
+    pending, start = "", 0
+    for lineno, raw in enumerate(text.splitlines(), 1):
+        line = raw.split("#", 1)[0]
+        if not pending:
+            start = lineno
+        stripped = line.rstrip()
+        if stripped.endswith("\\"):
+            pending += stripped[:-1] + " "
+            continue
+        line, pending = pending + line, ""
+        tokens = line.split()
+        if tokens:
+            yield start, tokens
+    if pending.split():
+        yield start, pending.split()
+
+
+def read_obj(p: Path, text: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Any OBJ → V (n,3) float64 in file order, F (m,3) int64 (0-based; out-of-range ones are left for the
+    validation to report)."""
+    if text is None:
+        text = decode(_read_bytes(p))
+    V: list[list[float]] = []
+    groups: list[list[list[int]]] = []  # runs of faces with the same corner count (and ``g``), as meshio read them
+    for lineno, tok in obj_lines(text):
+        key = tok[0]
+        if key == "v":
+            if len(tok) < 3:
+                raise _fail(p, "a 'v' line needs at least 2 coordinates", lineno)
+            try:
+                xyz = [float(t) for t in tok[1:4]]
+            except ValueError:
+                bad = next(t for t in tok[1:4] if not _is_float(t))
+                raise _fail(p, f"vertex coordinate {_shown(bad)} is not a number", lineno) from None
+            if len(xyz) == 2:
+                xyz.append(0.0)
+            V.append(xyz)
+        elif key == "f" or key == "fo":
+            if len(tok) < 4:
+                raise _fail(p, f"a face needs at least 3 corners, this one has {len(tok) - 1}", lineno)
+            corners = []
+            for c in tok[1:]:
+                head = c.split("/", 1)[0]
+                try:
+                    i = int(head)
+                except ValueError:
+                    raise _fail(p, f"face corner {_shown(c)} is not a vertex index", lineno) from None
+                if i == 0:
+                    raise _fail(p, "face index 0 (OBJ indices start at 1; negative ones count back)", lineno)
+                if i < 0:
+                    if -i > len(V):
+                        raise _fail(p, f"relative face index {i} points before the first vertex "
+                                       f"({len(V)} defined so far)", lineno)
+                    i = len(V) + i
+                else:
+                    i -= 1
+                corners.append(i)
+            if not groups or (groups[-1] and len(groups[-1][-1]) != len(corners)):
+                groups.append([])
+            groups[-1].append(corners)
+        elif key == "g":
+            groups.append([])
+    Va = np.asarray(V, dtype=np.float64).reshape(-1, 3)
+    Fa = _fan_groups([g for g in groups if g])
+    if len(Fa) and Fa.max() > np.iinfo(np.int64).max // 2:
+        raise _fail(p, "a face index is out of range")
+    return Va, Fa
+
+
+def _fan_groups(groups: list[list[list[int]]]) -> np.ndarray:
+    """Fan-triangulate groups of same-size polygons, each group as [all first triangles, all second ...] (the order
+    heatparam's maps were made with when meshio read OBJs). (m,3) int64."""
+    tris = []
+    for g in groups:
+        a = np.asarray(g, dtype=np.int64)
+        tris += [a[:, [0, j, j + 1]] for j in range(1, a.shape[1] - 1)]
+    return np.concatenate(tris) if tris else np.zeros((0, 3), dtype=np.int64)
+
+
+def _off_triangles(polys: list[list[int]]) -> np.ndarray:
+    """Triangles of OFF polygons in the order trimesh gives (heatparam's maps were made with it): the triangles,
+    then the quads' (0,1,2) and their (2,3,0) halves, then the larger polygons' fans. (m,3) int64."""
+    sizes = np.array([len(q) for q in polys], dtype=np.int64)
+    if len(sizes) and (sizes == 3).all():
+        return np.asarray(polys, dtype=np.int64).reshape(-1, 3)
+    tri = np.asarray([q for q in polys if len(q) == 3], dtype=np.int64).reshape(-1, 3)
+    quad = np.asarray([q for q in polys if len(q) == 4], dtype=np.int64).reshape(-1, 4)
+    fans = [t for q in polys if len(q) > 4 for t in _fan(q)]
+    return np.vstack([tri, quad[:, [0, 1, 2]], quad[:, [2, 3, 0]], np.asarray(fans, dtype=np.int64).reshape(-1, 3)])
+
+
+def _is_float(t: str) -> bool:
+    try:
+        float(t)
+    except ValueError:
+        return False
+    return True
+
+
+# ----------------------------------------------------------------------------------------------------------
+# OFF
+# ----------------------------------------------------------------------------------------------------------
+_OFF_HEADER = re.compile(r"^(ST)?(C)?(N)?(4)?(n)?OFF$")
+
+
+def _data_lines(text: str):
+    for lineno, raw in enumerate(text.splitlines(), 1):
+        tokens = raw.split("#", 1)[0].split()
+        if tokens:
+            yield lineno, tokens
+
+
+def _ints(p: Path, tokens: list[str], lineno: int, what: str) -> list[int]:
+    try:
+        return [int(t) for t in tokens]
+    except ValueError:
+        bad = next(t for t in tokens if not t.lstrip("+-").isdigit())
+        raise _fail(p, f"{what} {_shown(bad)} is not a whole number", lineno) from None
+
+
+def read_off(p: Path) -> tuple[np.ndarray, np.ndarray]:
+    """ASCII OFF → V (n,3) float64 in file order, F (m,3) int64 (polygons fan-triangulated)."""
+    data = _read_bytes(p)
+    first = data.lstrip()[:64].split(b"\n", 1)[0].upper()
+    if b"BINARY" in first:
+        raise _fail(p, "binary OFF is not supported — export it as ASCII OFF, OBJ or PLY")
+    text = decode(data)
+    fast = _off_fast(text)
+    if fast is not None:
+        return fast
+    lines = _data_lines(text)
+    try:
+        lineno, tok = next(lines)
+    except StopIteration:
+        raise _fail(p, "the file is empty") from None
+    if _OFF_HEADER.match(tok[0]):
+        m = _OFF_HEADER.match(tok[0])
+        if m.group(4) or m.group(5):
+            raise _fail(p, f"{_shown(tok[0])} (4D or n-dimensional) OFF is not supported: vertices must be 3D", lineno)
+        tok = tok[1:]
+        if not tok:
+            try:
+                lineno, tok = next(lines)
+            except StopIteration:
+                raise _fail(p, "the file ends after the header") from None
+    elif not tok[0].lstrip("+-").isdigit():
+        raise _fail(p, f"expected the 'OFF' header, got {_shown(tok[0])} — is it an OFF file?", lineno)
+    counts = _ints(p, tok[:3], lineno, "count")
+    if len(counts) < 2 or min(counts) < 0:
+        raise _fail(p, "expected the vertex and face counts after the header", lineno)
+    nv, nf = counts[0], counts[1]
+    V = np.empty((0, 3))
+    rows: list[list[float]] = []
+    for k, (lineno, tok) in enumerate(lines):
+        if len(tok) < 3:
+            raise _fail(p, "a vertex line needs 3 coordinates", lineno)
+        try:
+            rows.append([float(t) for t in tok[:3]])
+        except ValueError:
+            bad = next(t for t in tok[:3] if not _is_float(t))
+            raise _fail(p, f"vertex coordinate {_shown(bad)} is not a number", lineno) from None
+        if k + 1 == nv:
+            break
+    if len(rows) < nv:
+        raise _fail(p, f"the file ends after {len(rows)} of the {nv} vertices its header announces")
+    V = np.asarray(rows, dtype=np.float64).reshape(-1, 3)
+    polys: list[list[int]] = []
+    done = 0
+    for lineno, tok in lines if nf else ():
+        idx = _ints(p, tok[:1], lineno, "corner count")
+        k = idx[0]
+        if k < 3:
+            raise _fail(p, f"a face needs at least 3 corners, this one has {k}", lineno)
+        if len(tok) < k + 1:
+            raise _fail(p, f"a face announces {k} corners but lists {len(tok) - 1}", lineno)
+        polys.append(_ints(p, tok[1:k + 1], lineno, "vertex index"))
+        done += 1
+        if done == nf:
+            break
+    if done < nf:
+        raise _fail(p, f"the file ends after {done} of the {nf} faces its header announces")
+    return V, _off_triangles(polys)
+
+
+def _off_fast(text: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """A plain OFF (``OFF`` header, no comments, 3 coordinates per vertex, all faces with the same corner count)
+    read vectorized: the same result as the line-by-line reader, or None for anything else."""
+    if "#" in text:
+        return None
+    tok = text.split()
+    if len(tok) < 4 or tok[0] != "OFF":
+        return None
+    try:
+        nv, nf, _ = (int(t) for t in tok[1:4])
+        body = tok[4:]
+        if nv < 0 or nf <= 0 or len(body) < 3 * nv + 1:
+            return None
+        k = int(body[3 * nv])
+        if k < 3 or len(body) != 3 * nv + (k + 1) * nf:
+            return None
+        V = np.array(body[:3 * nv], dtype=np.float64).reshape(nv, 3)
+        P = np.array(body[3 * nv:], dtype=np.int64).reshape(nf, k + 1)
+    except (ValueError, OverflowError):
+        return None
+    if (P[:, 0] != k).any():
+        return None
+    P = P[:, 1:]
+    if k == 3:
+        return V, P
+    if k == 4:
+        return V, np.vstack([P[:, [0, 1, 2]], P[:, [2, 3, 0]]])
+    return V, np.stack([P[:, [0, j, j + 1]] for j in range(1, k - 1)], axis=1).reshape(-1, 3)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# STL
+# ----------------------------------------------------------------------------------------------------------
+_STL_BINARY = np.dtype([("normal", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+_STL_VERTEX = re.compile(rb"vertex\s+(\S+)\s+(\S+)\s+(\S+)", re.IGNORECASE)
+
+
+def read_stl(p: Path) -> tuple[np.ndarray, np.ndarray]:
+    """STL → one vertex per triangle corner V (3m,3), F (m,3) (``io`` merges identical corners)."""
+    data = _read_bytes(p)
+    count = int(np.frombuffer(data, dtype="<u4", count=1, offset=80)[0]) if len(data) >= 84 else -1
+    if count >= 0 and len(data) == 84 + 50 * count:
+        tri = np.frombuffer(data, dtype=_STL_BINARY, count=count, offset=84)
+        V = tri["v"].reshape(-1, 3).astype(np.float64)
+        return V, np.arange(len(V), dtype=np.int64).reshape(-1, 3)
+    if count >= 0 and b"\0" in data[84:]:  # binary, whatever its header says: the size does not match
+        raise _fail(p, f"truncated or corrupt binary STL: {len(data)} bytes, but its header announces {count} "
+                       f"triangles ({84 + 50 * count} bytes)")
+    if not data.lstrip()[:5].lower() == b"solid":
+        raise _fail(p, f"not an STL file: neither ASCII ('solid …') nor binary (a binary STL of "
+                       f"{len(data)} bytes would need 84 + 50 bytes per triangle)")
+    found = _STL_VERTEX.findall(data)
+    if len(found) % 3:
+        raise _fail(p, f"ASCII STL with {len(found)} 'vertex' lines, not a multiple of 3")
+    try:
+        V = np.array([[float(x) for x in row] for row in found], dtype=np.float64).reshape(-1, 3)
+    except ValueError:
+        raise _fail(p, "an ASCII STL 'vertex' line holds something that is not a number") from None
+    return V, np.arange(len(V), dtype=np.int64).reshape(-1, 3)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# PLY
+# ----------------------------------------------------------------------------------------------------------
+def ply_ascii_header(p: Path) -> bytes:
+    """The PLY file's bytes with every non-ASCII byte of its header (comments, names) replaced by ``?``, so that
+    the PLY libraries, which decode the header as UTF-8, read it."""
+    data = _read_bytes(p)
+    end = data.find(b"end_header")
+    if not data.startswith(b"ply") or end < 0:
+        raise _fail(p, "not a PLY file (no 'ply' … 'end_header' header)")
+    head = data[:end]
+    if max(head, default=0) < 128:
+        return data
+    return bytes(b if b < 128 else 63 for b in head) + data[end:]

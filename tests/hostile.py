@@ -1,0 +1,68 @@
+"""Hostile datasets built in code: long thin limbs on a curved surface, slivers and needles (issue 16).
+
+Each function returns plain arrays ``V (n,3) float64, F (m,3) int64`` (counter-clockwise faces, one border).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from heatparam.datasets import mesh_domain, polygon
+
+
+def limbs_outline(n_limbs: int = 5, body: float = 0.6, limb_length: float = 3.0, limb_width: float = 0.08,
+                  h: float = 0.04) -> np.ndarray:
+    """A star-like figure: a round body with ``n_limbs`` long thin straight limbs. (k,2) counter-clockwise loop."""
+    corners = []
+    for i in range(n_limbs):
+        a = 2 * np.pi * i / n_limbs
+        d = np.array([np.cos(a), np.sin(a)])
+        nrm = np.array([-d[1], d[0]])
+        half = 0.5 * limb_width
+        base = np.sqrt(body**2 - half**2) * d
+        corners += [base - half * nrm, base + limb_length * d - half * nrm, base + limb_length * d + half * nrm,
+                    base + half * nrm]
+        # body arc up to the next limb
+        a_next = 2 * np.pi * (i + 1) / n_limbs
+        da = np.arcsin(half / body)
+        for t in np.linspace(a + da, a_next - da, 8)[1:-1]:
+            corners.append(body * np.array([np.cos(t), np.sin(t)]))
+    return polygon(np.array(corners), h)
+
+
+def thin_limbs_disk(n_limbs: int = 5, limb_length: float = 3.0, limb_width: float = 0.08, h: float = 0.04,
+                    bend: float = 1.0, twist: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """A figure with long thin limbs (a disk) on a curved surface: the limbs curl down a cylinder-like bend of
+    curvature ``bend`` and twist by ``twist`` radians per unit length (not developable when both are set).
+
+    Returns V (n,3), F (m,3)."""
+    uv, F = mesh_domain([limbs_outline(n_limbs, 0.6, limb_length, limb_width, h)], h)
+    r = np.linalg.norm(uv, axis=1)
+    ang = np.arctan2(uv[:, 1], uv[:, 0])
+    # each point curls around its own radial direction: arc length r along a circle of curvature `bend`
+    k = max(bend, 1e-12)
+    z = (np.cos(k * r) - 1) / k
+    rr = np.sin(k * r) / k
+    ang = ang + twist * r
+    V = np.column_stack([rr * np.cos(ang), rr * np.sin(ang), z])
+    return V, F
+
+
+def degrade(V: np.ndarray, F: np.ndarray, slivers: float = 0.02, needles: float = 0.02, seed: int = 0,
+            squeeze: float = 1e-6) -> np.ndarray:
+    """A copy of V with nearly degenerate triangles, as in real scans: for a fraction ``slivers`` of the faces,
+    one corner is moved onto the opposite edge up to ``squeeze`` × its height (slivers); for a fraction
+    ``needles``, one corner is moved onto another up to ``squeeze`` × the edge (needles). Border vertices move
+    too. (n,3)."""
+    rng = np.random.default_rng(seed)
+    V = V.copy()
+    m = len(F)
+    for f in rng.choice(m, int(slivers * m), replace=False):
+        a, b, c = F[f]
+        t = rng.uniform(0.2, 0.8)
+        foot = V[b] + t * (V[c] - V[b])
+        V[a] = foot + squeeze * (V[a] - foot)
+    for f in rng.choice(m, int(needles * m), replace=False):
+        a, b, _ = F[f]
+        V[a] = V[b] + squeeze * (V[a] - V[b])
+    return V
