@@ -43,16 +43,12 @@ def cylinder_map() -> Map:
     return Map(sh.V, sh.F, r.uv, r.Fuv, r.uv_vertex)
 
 
-@functools.cache
-def two_chart_atlas() -> Map:
-    """The cylinder map cut along the straight line x = -0.2 of its flat layout (clear of holes and notch) into
-    two charts with their own uv rows, both moved to the origin so that their bounding boxes overlap."""
-    sh = datasets.cylinder_with_holes()
-    m = cylinder_map()
-    chart = (sh.uv_true[sh.F].mean(axis=1)[:, 0] > -0.2).astype(np.int64)
+def split_charts(m: Map, chart: np.ndarray) -> Map:
+    """The map ``m`` cut into the charts ``chart`` (m,) (each with its own uv rows), every chart moved to the
+    origin so that their bounding boxes overlap."""
     Fuv = m.Fuv.copy()
     uvs, vs, n = [], [], 0
-    for c in (0, 1):
+    for c in np.unique(chart):
         f = np.flatnonzero(chart == c)
         rows = np.unique(m.Fuv[f])
         remap = np.full(len(m.uv), -1)
@@ -62,6 +58,14 @@ def two_chart_atlas() -> Map:
         uvs.append(m.uv[rows] - m.uv[rows].min(axis=0))
         vs.append(m.uv_vertex[rows])
     return Map(m.V, m.F, np.concatenate(uvs), Fuv, np.concatenate(vs), chart)
+
+
+@functools.cache
+def two_chart_atlas() -> Map:
+    """The cylinder map cut along the straight line x = -0.2 of its flat layout (clear of holes and notch) into
+    two charts with their own uv rows, both moved to the origin so that their bounding boxes overlap."""
+    sh = datasets.cylinder_with_holes()
+    return split_charts(cylinder_map(), (sh.uv_true[sh.F].mean(axis=1)[:, 0] > -0.2).astype(np.int64))
 
 
 @functools.cache

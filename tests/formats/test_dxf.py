@@ -18,6 +18,7 @@ from formats_cases import (
     edge_stretch_bounds,
     halftunnel_map,
     polyline_length,
+    split_charts,
     two_chart_atlas,
     write_off,
 )
@@ -201,20 +202,11 @@ def test_shelf_layout_many_charts():
     m = cylinder_map()
     x = sh.uv_true[sh.F].mean(axis=1)[:, 0]
     chart = np.digitize(x, np.linspace(x.min(), x.max(), 7)[1:-1])
-    Fuv, uvs, vs, n = m.Fuv.copy(), [], [], 0
-    for c in range(6):
-        f = np.flatnonzero(chart == c)
-        rows = np.unique(m.Fuv[f])
-        remap = np.full(len(m.uv), -1)
-        remap[rows] = np.arange(len(rows)) + n
-        Fuv[f] = remap[m.Fuv[f]]
-        n += len(rows)
-        uvs.append(m.uv[rows] - m.uv[rows].min(axis=0))
-        vs.append(m.uv_vertex[rows])
-    uv = np.concatenate(uvs)
-    sizes = np.array([np.ptp(u, axis=0) for u in uvs])
+    six = split_charts(m, chart)
+    uv, Fuv, vs = six.uv, six.Fuv, six.uv_vertex
+    sizes = np.array([np.ptp(uv[np.unique(Fuv[chart == c])], axis=0) for c in range(6)])
     for sheet in (None, tuple(sizes.max(0) * (2.6, 1.3))):
-        pat = layout_charts(build_pattern(m.V, m.F, uv, Fuv, np.concatenate(vs), chart), sheet=sheet)
+        pat = layout_charts(build_pattern(m.V, m.F, uv, Fuv, vs, chart), sheet=sheet)
         boxes = [(pat.uv[c.rows].min(0), pat.uv[c.rows].max(0)) for c in pat.charts]
         for i in range(6):
             assert np.allclose(pat.uv[pat.charts[i].rows] - uv[pat.charts[i].rows], pat.charts[i].offset)

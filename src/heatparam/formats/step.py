@@ -1,0 +1,592 @@
+"""STEP output: each chart of a map as a trimmed B-spline surface (OpenCascade 8, through the ``OCP`` bindings of
+the ``cadquery-ocp-novtk`` wheel; ``cadquery-ocp`` provides the same module with VTK besides).
+
+Method (measured on the developable ``cylinder_with_holes`` and on camelhead, see :func:`write_step`):
+
+1. **Fit.** For each chart, a clamped bicubic B-spline surface ``S(u,v)`` over the chart's padded parameter
+   rectangle is fitted by penalized least squares to the 3D positions of the mesh vertices at their uv and of the
+   face centroids at theirs (barycentric interpolation of the map, which is bijective), plus a small
+   second-difference (thin-plate-like) penalty on the control net. The penalty makes the system definite where
+   there is no data (holes, bays, the rectangle's corners outside the chart): the surface is extended there
+   smoothly (near-linearly) instead of being sampled, so no explicit extension of the map is needed. The knot
+   grid starts at ~32 intervals on the longer side and is refined where needed: every knot interval (in u and in
+   v) that contains a vertex deviating by more than 0.9 tolerance is halved, until the max deviation at the mesh
+   vertices, ``|S(uv_i) - V_i|``, is within the tolerance.
+   Why this and not a sampled grid + ``GeomAPI_PointsToBSplineSurface``: the acceptance measure is the deviation
+   at the vertices, and fitting them directly meets it with the fewest control points (a grid sample of the
+   piecewise-linear map puts its points between the vertices, not on them); the centroids keep the surface on the
+   mesh inside every triangle. On camelhead (tolerance 0.1% of the diagonal) a uniform knot grid of 195x185
+   control points still deviates by 2.0 tolerances at the vertices; the locally refined one meets it with
+   195x180. The penalty weight (1e-2 of the data term's mean diagonal) was measured: at 1e-4 the camelhead face
+   is 1.5% larger than the mesh (the surface ripples between the data where the knots are finer than the
+   triangles), at 1e-2 0.09%; at 1e-1 the developable part needs 81x80 instead of 43x40 control points.
+2. **Trim.** The chart's boundary loops in uv (outer counter-clockwise, holes clockwise, from the boundary
+   half-edges of its faces) become one straight 2D segment per boundary edge on the surface
+   (``BRepBuilderAPI_MakeEdge(Geom2d segment, surface, v1, v2)``, sharing the loop's vertices), wires, a face
+   (``BRepBuilderAPI_MakeFace`` + ``Add`` per hole), 3D curves by ``BRepLib.BuildCurves3d_s`` and
+   ``ShapeFix_Face``. A chart made of several connected pieces gives one face per piece.
+3. **Assemble and write.** One face: written as it is. Several faces: sewn with ``BRepBuilderAPI_Sewing``
+   (tolerance: twice the fit tolerance) where they share boundaries, kept only when ``BRepCheck_Analyzer`` still
+   calls the result valid (else a compound of the faces). ``STEPControl_Writer`` writes to a temporary file beside
+   the output, renamed over it on success. The coordinates are written unchanged and the file declares ``units``.
+   The header's time stamp is fixed, so the same input gives the same file.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.interpolate import BSpline
+from scipy.sparse.csgraph import connected_components
+
+from heatparam.errors import HeatparamError
+from heatparam.mesh.planar import polygon_area
+from heatparam.mesh.topology import boundary_loops
+
+DEGREE = 3
+# file unit names: ours -> OpenCascade's ``write.step.unit`` / ``xstep.cascade.unit`` values; mm per unit
+UNITS = {"mm": ("MM", 1.0), "cm": ("CM", 10.0), "m": ("M", 1000.0), "in": ("INCH", 25.4), "ft": ("FT", 304.8)}
+TIME_STAMP = "2000-01-01T00:00:00"  # fixed: deterministic output
+MAX_CONTROL_POINTS = 1_000_000  # per chart (a 1000 x 1000 net); beyond it the fit stops and warns
+_PENALTY = 1e-2  # weight of the control-net smoothness term, relative to the mean diagonal of the data term
+_START_INTERVALS = 32  # knot intervals along the longer side of the parameter rectangle at the first fit
+_SPLIT_AT = 0.9  # knot intervals holding a vertex deviating by more than this x tolerance are halved
+_MAX_ROUNDS = 12
+
+
+def _require_ocp():
+    try:
+        import OCP  # noqa: F401
+    except ImportError as e:  # pragma: no cover - OCP is a dependency
+        raise HeatparamError("STEP output needs OpenCascade's Python bindings: pip install cadquery-ocp-novtk") from e
+
+
+# --------------------------------------------------------------------------------------------------- B-spline fit
+def _clamped(breaks: np.ndarray) -> np.ndarray:
+    """Full clamped knot vector of degree DEGREE from the distinct breakpoints (b,)."""
+    return np.concatenate([[breaks[0]] * DEGREE, breaks, [breaks[-1]] * DEGREE])
+
+
+def _design(uv: np.ndarray, tu: np.ndarray, tv: np.ndarray) -> sp.csr_matrix:
+    """(N, nu*nv) tensor-product B-spline basis values at the points uv (N,2); column = i*nv + j."""
+    k = DEGREE
+    Bu = BSpline.design_matrix(np.clip(uv[:, 0], tu[0], tu[-1]), tu, k).tocsr()
+    Bv = BSpline.design_matrix(np.clip(uv[:, 1], tv[0], tv[-1]), tv, k).tocsr()
+    Bu.sort_indices()
+    Bv.sort_indices()
+    nv = Bv.shape[1]
+    N = len(uv)
+    iu, du = Bu.indices.reshape(N, k + 1), Bu.data.reshape(N, k + 1)
+    iv, dv = Bv.indices.reshape(N, k + 1), Bv.data.reshape(N, k + 1)
+    cols = (iu[:, :, None] * nv + iv[:, None, :]).reshape(-1)
+    vals = (du[:, :, None] * dv[:, None, :]).reshape(-1)
+    rows = np.repeat(np.arange(N), (k + 1) ** 2)
+    return sp.csr_matrix((vals, (rows, cols)), shape=(N, Bu.shape[1] * nv))
+
+
+def _smoothness(nu: int, nv: int) -> sp.csr_matrix:
+    """Second differences of the control net (uu, 2 uv, vv), squared: (nu*nv, nu*nv) PSD."""
+
+    def d2(n):
+        return sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(max(n - 2, 0), n))
+
+    def d1(n):
+        return sp.diags([-1.0, 1.0], [0, 1], shape=(n - 1, n))
+
+    Duu = sp.kron(d2(nu), sp.identity(nv))
+    Dvv = sp.kron(sp.identity(nu), d2(nv))
+    Duv = sp.kron(d1(nu), d1(nv))
+    return (Duu.T @ Duu + Dvv.T @ Dvv + 2.0 * Duv.T @ Duv).tocsr()
+
+
+def _halve(breaks: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Breakpoints (b,) with every interval that contains one of x (k,) halved."""
+    i = np.unique(np.clip(np.searchsorted(breaks, x, side="right") - 1, 0, len(breaks) - 2))
+    return np.sort(np.concatenate([breaks, 0.5 * (breaks[i] + breaks[i + 1])]))
+
+
+def _fit_surface(uv_v: np.ndarray, X_v: np.ndarray, uv_c: np.ndarray, X_c: np.ndarray, tol: float) -> dict:
+    """Fit a clamped bicubic B-spline to points X_v (k,3) at uv_v (k,2) (the vertices) and X_c at uv_c (the face
+    centroids), refining the knots until every vertex is within ``tol``.
+
+    Returns dict: poles (nu,nv,3), bu (a,) and bv (b,) distinct breakpoints, dev (k,) vertex deviations,
+    rounds, within (bool).
+    """
+    from heatparam.solvers import Factor, large_system_backend
+
+    lo, hi = uv_v.min(0), uv_v.max(0)
+    size = hi - lo
+    pad = 0.01 * max(size.max(), 1e-300)
+    lo, hi, size = lo - pad, hi + pad, size + 2 * pad
+    h = size.max() / _START_INTERVALS
+    bu = np.linspace(lo[0], hi[0], max(1, int(np.ceil(size[0] / h))) + 1)
+    bv = np.linspace(lo[1], hi[1], max(1, int(np.ceil(size[1] / h))) + 1)
+    uvd = np.concatenate([uv_v, uv_c])
+    X = np.concatenate([X_v, X_c])
+    best = None
+    for rounds in range(1, _MAX_ROUNDS + 1):
+        tu, tv = _clamped(bu), _clamped(bv)
+        nu, nv = len(bu) + DEGREE - 1, len(bv) + DEGREE - 1
+        B = _design(uvd, tu, tv)
+        A = (B.T @ B).tocsr()
+        M = A + (_PENALTY * A.diagonal().mean()) * _smoothness(nu, nv)
+        # PARDISO where installed from 10k control points (camelhead's 35k: 3.2 s vs CHOLMOD's 7.8 s, loaded machine)
+        backend = large_system_backend(nu * nv, "auto", min_unknowns=10_000)
+        C = Factor(M.tocsc(), backend).solve(np.asarray(B.T @ X))
+        dev = np.linalg.norm(B[: len(uv_v)] @ C - X_v, axis=1)
+        best = {"poles": C.reshape(nu, nv, 3), "bu": bu, "bv": bv, "dev": dev, "rounds": rounds}
+        bad = dev > _SPLIT_AT * tol
+        if dev.max() <= tol and not bad.any():
+            break
+        nbu, nbv = _halve(bu, uv_v[bad, 0]), _halve(bv, uv_v[bad, 1])
+        if (len(nbu) + DEGREE - 1) * (len(nbv) + DEGREE - 1) > MAX_CONTROL_POINTS:
+            break
+        bu, bv = nbu, nbv
+    best["within"] = bool(best["dev"].max() <= tol)
+    return best
+
+
+# ------------------------------------------------------------------------------------------------------ topology
+def _pieces(Fc: np.ndarray) -> list[np.ndarray]:
+    """Connected pieces (through shared uv edges) of the triangles Fc (m,3): lists of face indices."""
+    m = len(Fc)
+    he = np.concatenate([Fc[:, [0, 1]], Fc[:, [1, 2]], Fc[:, [2, 0]]])
+    e = np.sort(he, axis=1)
+    _, inv = np.unique(e, axis=0, return_inverse=True)
+    face = np.tile(np.arange(m), 3)
+    order = np.argsort(inv.ravel(), kind="stable")
+    s_inv, s_face = inv.ravel()[order], face[order]
+    same = s_inv[1:] == s_inv[:-1]
+    G = sp.coo_matrix((np.ones(same.sum()), (s_face[:-1][same], s_face[1:][same])), shape=(m, m))
+    k, lab = connected_components(G, directed=False)
+    return [np.flatnonzero(lab == i) for i in range(k)]
+
+
+# ---------------------------------------------------------------------------------------------- OpenCascade part
+def _occ_surface(fit: dict):
+    # OCP 8 (OpenCascade 8.0): the NCollection arrays are OCP.collections' templates
+    from OCP.collections import Array1_double as TColStd_Array1OfReal
+    from OCP.collections import Array1_int as TColStd_Array1OfInteger
+    from OCP.collections import Array2_gp_Pnt as TColgp_Array2OfPnt
+    from OCP.Geom import Geom_BSplineSurface
+    from OCP.gp import gp_Pnt
+
+    P = fit["poles"]
+    nu, nv = P.shape[:2]
+    poles = TColgp_Array2OfPnt(1, nu, 1, nv)
+    for i in range(nu):
+        for j in range(nv):
+            x, y, z = P[i, j]
+            poles.SetValue(i + 1, j + 1, gp_Pnt(float(x), float(y), float(z)))
+
+    def knots(b):
+        kn, mu = TColStd_Array1OfReal(1, len(b)), TColStd_Array1OfInteger(1, len(b))
+        for i, t in enumerate(b):
+            kn.SetValue(i + 1, float(t))
+            mu.SetValue(i + 1, DEGREE + 1 if i in (0, len(b) - 1) else 1)
+        return kn, mu
+
+    uk, um = knots(fit["bu"])
+    vk, vm = knots(fit["bv"])
+    return Geom_BSplineSurface(poles, uk, vk, um, vm, DEGREE, DEGREE)
+
+
+def _occ_face(surface, uv: np.ndarray, loops: list[np.ndarray], reverse: bool, tol3d: float):
+    """A face of ``surface`` trimmed by the uv loops (the first is the outer one, counter-clockwise)."""
+    from OCP.BRepBuilderAPI import (
+        BRepBuilderAPI_MakeEdge,
+        BRepBuilderAPI_MakeFace,
+        BRepBuilderAPI_MakeVertex,
+        BRepBuilderAPI_MakeWire,
+    )
+    from OCP.BRepLib import BRepLib
+    from OCP.Geom2d import Geom2d_Line
+    from OCP.gp import gp_Dir2d, gp_Pnt2d
+    from OCP.ShapeFix import ShapeFix_Face
+    from OCP.TopoDS import TopoDS
+
+    def wire(lp):
+        P = uv[lp]
+        verts = [BRepBuilderAPI_MakeVertex(surface.Value(float(u), float(v))).Vertex() for u, v in P]
+        mw = BRepBuilderAPI_MakeWire()
+        for i in range(len(lp)):
+            j = (i + 1) % len(lp)
+            d = P[j] - P[i]
+            length = float(np.hypot(*d))
+            if not length > 0:
+                raise HeatparamError("cannot write STEP: two consecutive border vertices share their uv")
+            line = Geom2d_Line(gp_Pnt2d(*map(float, P[i])), gp_Dir2d(*map(float, d / length)))
+            me = BRepBuilderAPI_MakeEdge(line, surface, verts[i], verts[j], 0.0, length)
+            if not me.IsDone():
+                raise HeatparamError("cannot write STEP: a trimming edge could not be built (degenerate border edge)")
+            mw.Add(me.Edge())
+        if not mw.IsDone():
+            raise HeatparamError("cannot write STEP: a chart border does not close into a wire")
+        return mw.Wire()
+
+    mf = BRepBuilderAPI_MakeFace(surface, wire(loops[0]), True)
+    for lp in loops[1:]:
+        mf.Add(wire(lp))
+    face = mf.Face()
+    BRepLib.BuildCurves3d_s(face, min(1e-5, 0.01 * tol3d))
+    fix = ShapeFix_Face(face)
+    fix.SetPrecision(0.01 * tol3d)
+    fix.Perform()
+    face = TopoDS.Face(fix.Face())
+    if reverse:
+        face = TopoDS.Face(face.Reversed())
+    return face
+
+
+def _valid(shape) -> bool:
+    from OCP.BRepCheck import BRepCheck_Analyzer
+
+    return bool(BRepCheck_Analyzer(shape).IsValid())
+
+
+def _area(shape) -> float:
+    from OCP.BRepGProp import BRepGProp
+    from OCP.GProp import GProp_GProps
+
+    props = GProp_GProps()
+    BRepGProp.SurfaceProperties_s(shape, props)
+    return float(props.Mass())
+
+
+@contextlib.contextmanager
+def _quiet_and_units(unit: str | None):
+    """Silence OpenCascade's console messages and set the STEP length units; both restored afterwards (they are
+    process-wide)."""
+    from OCP.Interface import Interface_Static
+    from OCP.Message import Message, Message_Gravity
+    from OCP.STEPControl import STEPControl_Controller
+
+    STEPControl_Controller.Init_s()
+    printers = Message.DefaultMessenger_s().Printers()
+    levels = [printers.Value(i).GetTraceLevel() for i in range(1, printers.Length() + 1)]
+    keys = ("write.step.unit", "xstep.cascade.unit")
+    old = {k: Interface_Static.CVal_s(k) for k in keys}
+    try:
+        for i in range(1, printers.Length() + 1):
+            printers.Value(i).SetTraceLevel(Message_Gravity.Message_Fail)
+        if unit is not None:
+            for k in keys:
+                Interface_Static.SetCVal_s(k, unit)
+        yield
+    finally:
+        for k, v in old.items():
+            if v:
+                Interface_Static.SetCVal_s(k, v)
+        for i, lev in enumerate(levels, start=1):
+            printers.Value(i).SetTraceLevel(lev)
+
+
+def _write_shape(shape, path: Path, unit: str) -> None:
+    from OCP.APIHeaderSection import APIHeaderSection_MakeHeader
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.StepBasic import StepBasic_Product
+    from OCP.STEPControl import STEPControl_AsIs, STEPControl_Writer
+    from OCP.TCollection import TCollection_HAsciiString
+
+    if not path.parent.exists():
+        raise HeatparamError(f"cannot write {path}: folder {path.parent} does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp.step", dir=path.parent)
+    os.close(fd)
+    try:
+        with _quiet_and_units(unit):
+            w = STEPControl_Writer()
+            if w.Transfer(shape, STEPControl_AsIs) != IFSelect_RetDone:
+                raise HeatparamError(f"cannot write {path}: OpenCascade could not translate the faces to STEP")
+            model = w.Model()
+            for i in range(1, model.NbEntities() + 1):  # OpenCascade numbers the products it writes in a process
+                ent = model.Value(i)
+                if isinstance(ent, StepBasic_Product):
+                    ent.SetName(TCollection_HAsciiString(path.stem or "heatparam"))
+                    ent.SetId(TCollection_HAsciiString(path.stem or "heatparam"))
+            hdr = APIHeaderSection_MakeHeader(model)
+            hdr.SetTimeStamp(TCollection_HAsciiString(TIME_STAMP))
+            hdr.SetOriginatingSystem(TCollection_HAsciiString("heatparam"))
+            hdr.SetName(TCollection_HAsciiString(path.name))
+            if w.Write(tmp) != IFSelect_RetDone:
+                raise HeatparamError(f"cannot write {path}: the STEP writer failed")
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp's 0600 -> what a plain open() would have given
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+# ------------------------------------------------------------------------------------------------------ public API
+def write_step(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray | None = None,
+               uv_vertex: np.ndarray | None = None, chart: np.ndarray | None = None, tolerance: float | None = None,
+               units: str = "mm") -> dict:
+    """Write a map as a STEP file of trimmed bicubic B-spline faces, one per chart (see the module docstring).
+
+    Parameters
+    ----------
+    path : output ``.step``/``.stp``; written atomically (temporary file beside it, renamed on success).
+    V : (n,3) float64 vertices. F : (m,3) int64 triangles.
+    uv : (k,2) float64 the map (``Result.uv``). Fuv : (m,3) int64 rows of uv at each face's corners
+        (``Result.Fuv``; None = F). uv_vertex : (k,) int64 the vertex of each uv row (``Result.uv_vertex``; None =
+        arange(k)).
+    chart : (m,) int chart id per face, or None (one chart).
+    tolerance : max deviation of the surface from the mesh vertices, in model units; None = 0.1% of the bounding
+        box diagonal of V.
+    units : length unit the coordinates are in and the file declares: ``mm``, ``cm``, ``m``, ``in``, ``ft``.
+
+    Returns
+    -------
+    dict, the fit report: ``tolerance``, ``units``, ``degree``, ``faces``, ``sewn``, ``valid``, ``area_mesh``,
+    ``area_faces``, ``max_deviation``, ``rms_deviation`` (at the mesh vertices, model units), ``control_points``
+    (total), ``seconds``, ``charts`` (per chart: ``chart``, ``faces``, ``vertices``, ``control_points`` [nu, nv],
+    ``degree`` [3, 3], ``knot_rounds``, ``max_deviation``, ``rms_deviation``, ``within_tolerance``) and
+    ``warnings`` (list of str).
+    """
+    t0 = time.perf_counter()
+    _require_ocp()
+    if units not in UNITS:
+        raise HeatparamError(f"unknown STEP units {units!r}: use one of {', '.join(UNITS)}")
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    uv = np.asarray(uv, dtype=np.float64)
+    Fuv = F if Fuv is None else np.asarray(Fuv, dtype=np.int64)
+    uv_vertex = np.arange(len(uv)) if uv_vertex is None else np.asarray(uv_vertex, dtype=np.int64)
+    if (V.ndim != 2 or V.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3 or len(F) == 0 or uv.ndim != 2
+            or uv.shape[1] != 2 or Fuv.shape != F.shape or len(uv_vertex) != len(uv)):
+        raise HeatparamError("cannot write STEP: V must be (n,3), F (m,3), uv (k,2), Fuv like F and uv_vertex (k,)")
+    if (F.min() < 0 or F.max() >= len(V) or Fuv.min() < 0 or Fuv.max() >= len(uv) or uv_vertex.min() < 0
+            or uv_vertex.max() >= len(V)):
+        raise HeatparamError("cannot write STEP: F, Fuv or uv_vertex holds an index out of range")
+    if not (np.isfinite(uv).all() and np.isfinite(V).all()):
+        raise HeatparamError("cannot write STEP: the map or the mesh has NaN or infinite coordinates")
+    chart = np.zeros(len(F), dtype=np.int64) if chart is None else np.asarray(chart).reshape(-1)
+    if len(chart) != len(F):
+        raise HeatparamError(f"cannot write STEP: chart has {len(chart)} entries for {len(F)} faces")
+    diag = float(np.linalg.norm(V.max(0) - V.min(0)))
+    tol = 1e-3 * diag if tolerance is None else float(tolerance)
+    if not tol > 0:
+        raise HeatparamError(f"the fit tolerance must be positive (got {tolerance})")
+
+    from OCP.BRep import BRep_Builder
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_Sewing
+    from OCP.TopoDS import TopoDS_Compound
+
+    X_row = V[uv_vertex]
+    faces, charts, warnings, devs = [], [], [], []
+    for c in np.unique(chart):
+        fc = np.flatnonzero(chart == c)
+        Fc = Fuv[fc]
+        rows = np.unique(Fc)
+        fit = _fit_surface(uv[rows], X_row[rows], uv[Fc].mean(1), V[F[fc]].mean(1), tol)
+        surface = _occ_surface(fit)
+        pieces = _pieces(Fc)
+        for piece in pieces:
+            loops = boundary_loops(Fc[piece])
+            areas = np.array([polygon_area(uv[lp]) for lp in loops])
+            outer = int(np.argmax(np.abs(areas)))
+            reverse = areas[outer] < 0  # a mirrored map: uv loops run clockwise, the surface normal is flipped
+            ordered = [loops[outer]] + [lp for i, lp in enumerate(loops) if i != outer]
+            if reverse:
+                ordered = [lp[::-1] for lp in ordered]
+            faces.append(_occ_face(surface, uv, ordered, reverse, tol))
+        dev = fit["dev"]
+        devs.append(dev)
+        charts.append({
+            "chart": int(c), "faces": len(pieces), "vertices": int(len(rows)),
+            "control_points": [int(s) for s in fit["poles"].shape[:2]], "degree": [DEGREE, DEGREE],
+            "knot_rounds": int(fit["rounds"]), "max_deviation": float(dev.max()),
+            "rms_deviation": float(np.sqrt(np.mean(dev**2))), "within_tolerance": fit["within"],
+        })
+        if not fit["within"]:
+            warnings.append(f"chart {int(c)}: the fit deviates by {dev.max():.4g} > tolerance {tol:.4g} at "
+                            f"{fit['poles'].shape[0]}x{fit['poles'].shape[1]} control points (the cap)")
+
+    sewn = False
+    if len(faces) == 1:
+        shape = faces[0]
+    else:
+        comp = TopoDS_Compound()
+        bld = BRep_Builder()
+        bld.MakeCompound(comp)
+        for f in faces:
+            bld.Add(comp, f)
+        shape = comp
+        sew = BRepBuilderAPI_Sewing(2.0 * tol)
+        for f in faces:
+            sew.Add(f)
+        sew.Perform()
+        sewed = sew.SewedShape()
+        if not sewed.IsNull() and _valid(sewed):
+            shape, sewn = sewed, True
+        else:
+            warnings.append("the charts were not sewn (sewing broke validity): the faces are written unjoined")
+    valid = _valid(shape)
+    if not valid:
+        warnings.append("OpenCascade's BRepCheck reports the shape invalid")
+    e1, e2 = V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]
+    area_mesh = float(0.5 * np.linalg.norm(np.cross(e1, e2), axis=1).sum())
+    area_faces = _area(shape)
+    _write_shape(shape, Path(path), UNITS[units][0])
+    dev = np.concatenate(devs)
+    return {
+        "tolerance": tol, "units": units, "degree": [DEGREE, DEGREE], "faces": len(faces), "sewn": sewn,
+        "valid": valid, "area_mesh": area_mesh, "area_faces": area_faces, "max_deviation": float(dev.max()),
+        "rms_deviation": float(np.sqrt(np.mean(dev**2))),
+        "control_points": int(sum(a * b for a, b in (c["control_points"] for c in charts))),
+        "seconds": time.perf_counter() - t0, "charts": charts, "warnings": warnings,
+    }
+
+
+def read_step(path: str | os.PathLike, units: str | None = None):
+    """Read a STEP file with OpenCascade: returns (shape, file_units), the shape's coordinates in ``units``
+    (one of :data:`UNITS`' keys; None = the file's own unit) and file_units the length unit the file declares
+    (OpenCascade's name, e.g. ``millimetre``, ``INCH``)."""
+    _require_ocp()
+    from OCP.collections import Sequence_TCollection_AsciiString
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.STEPControl import STEPControl_Reader
+
+    with _quiet_and_units(None):
+        r = STEPControl_Reader()
+        if r.ReadFile(str(path)) != IFSelect_RetDone:
+            raise HeatparamError(f"cannot read {path} as STEP")
+        lengths, angles, solid = (Sequence_TCollection_AsciiString() for _ in range(3))
+        r.FileUnits(lengths, angles, solid)
+        names = [lengths.Value(i).ToCString() for i in range(1, lengths.Length() + 1)]
+        file_unit = names[0] if names else "millimetre"
+        if units is None:
+            mm = {"millimetre": 1.0, "centimetre": 10.0, "metre": 1000.0, "INCH": 25.4, "FOOT": 304.8}
+            scale = mm.get(file_unit, 1.0)
+        else:
+            scale = UNITS[units][1]
+        r.SetSystemLengthUnit(scale)
+        r.TransferRoots()
+        shape = r.OneShape()
+    return shape, file_unit
+
+
+def _distances(shape, P: np.ndarray) -> np.ndarray:
+    """(p,) distance of each point P (p,3) to the faces of ``shape``, each an upper bound (a distance to a point of
+    the shape): a point's projection on each face's surface (``ShapeAnalysis_Surface.NextValueOfUV`` from the
+    nearest of a grid of surface samples, a local projection; the points over 0.9 of the max again with the global
+    ``ValueOfUV``) counts where its foot lies on the face (``IntTools_FClass2d``: in or on the border); a point with
+    no such foot is measured to the shape's edges by ``BRepExtrema_DistShapeShape``."""
+    from OCP.BRep import BRep_Builder, BRep_Tool
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
+    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+    from OCP.gp import gp_Pnt, gp_Pnt2d
+    from OCP.IntTools import IntTools_FClass2d
+    from OCP.ShapeAnalysis import ShapeAnalysis_Surface
+    from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_IN, TopAbs_ON
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS, TopoDS_Compound
+    from scipy.spatial import cKDTree
+
+    span = float(np.linalg.norm(P.max(0) - P.min(0))) if len(P) else 1.0
+    prec = 1e-9 * span
+    dist = np.full(len(P), np.inf)
+    pts = [gp_Pnt(float(x), float(y), float(z)) for x, y, z in P]
+    faces = []
+    ex = TopExp_Explorer(shape, TopAbs_FACE)
+    while ex.More():
+        face = TopoDS.Face(ex.Current())
+        surf = BRep_Tool.Surface_s(face)
+        sas = ShapeAnalysis_Surface(surf)
+        cls = IntTools_FClass2d(face, max(BRep_Tool.Tolerance_s(face), prec))
+        # start points: the nearest of a grid of surface samples (3 per pole span), then a local projection
+        u0, u1, v0, v1 = surf.Bounds()
+        nu = 3 * getattr(surf, "NbUPoles", lambda: 64)() + 1
+        nv = 3 * getattr(surf, "NbVPoles", lambda: 64)() + 1
+        us, vs = np.linspace(u0, u1, nu), np.linspace(v0, v1, nv)
+        grid = np.array([[surf.Value(float(u), float(v)).Coord() for v in vs] for u in us]).reshape(-1, 3)
+        _, near = cKDTree(grid).query(P)
+        for i, p in enumerate(pts):
+            start = gp_Pnt2d(float(us[near[i] // nv]), float(vs[near[i] % nv]))
+            uv = sas.NextValueOfUV(start, p, prec)
+            gap = sas.Gap()
+            if gap < dist[i] and cls.Perform(uv) in (TopAbs_IN, TopAbs_ON):
+                dist[i] = gap
+        faces.append((sas, cls))
+        ex.Next()
+    # a local projection can stop in a farther local minimum: the points that could hold the maximum (over 0.9 of
+    # it) are projected again with OpenCascade's global search, until no other point can (the max is then that of
+    # the global search; the others stay upper bounds)
+    redone = np.zeros(len(P), dtype=bool)
+    while True:
+        finite = dist[np.isfinite(dist)]
+        if not len(finite):
+            break
+        todo = np.flatnonzero(~redone & np.isfinite(dist) & (dist > 0.9 * finite.max()))
+        if not len(todo):
+            break
+        for i in todo:
+            for sas, cls in faces:
+                uv = sas.ValueOfUV(pts[i], prec)
+                gap = sas.Gap()
+                if gap < dist[i] and cls.Perform(uv) in (TopAbs_IN, TopAbs_ON):
+                    dist[i] = gap
+        redone[todo] = True
+    rest = np.flatnonzero(~np.isfinite(dist))
+    if len(rest):
+        # no foot on a face: the nearest point of the shape is on an edge (the faces' borders), unless an interior
+        # local minimum is nearer; a point on an edge is a point of the shape, so this is an upper bound too (and
+        # ~20x faster than measuring to the faces: 0.5 s a point on camelhead's 195x180-pole face)
+        edges = TopoDS_Compound()
+        bld = BRep_Builder()
+        bld.MakeCompound(edges)
+        ex = TopExp_Explorer(shape, TopAbs_EDGE)
+        while ex.More():
+            bld.Add(edges, ex.Current())
+            ex.Next()
+        ds = BRepExtrema_DistShapeShape()
+        ds.LoadS2(edges)
+        for i in rest:
+            ds.LoadS1(BRepBuilderAPI_MakeVertex(pts[i]).Vertex())
+            if not ds.Perform() or not ds.IsDone():
+                raise HeatparamError("OpenCascade could not measure a distance to the shape")
+            dist[i] = ds.Value()
+    return dist
+
+
+def inspect_step(path: str | os.PathLike, points: np.ndarray | None = None, units: str | None = None,
+                 max_points: int | None = None, seed: int = 0) -> dict:
+    """Read a STEP file back and measure it: for tests and reports.
+
+    Parameters
+    ----------
+    points : (p,3) float64 or None; their distances to the shape's faces are measured (see :func:`_distances`).
+    units : unit to read the coordinates in (None = the file's own).
+    max_points : measure at most this many points (a seeded random sample), or None for all.
+
+    Returns
+    -------
+    dict: ``valid`` (BRepCheck_Analyzer), ``faces``, ``area``, ``file_units`` and, with
+    points, ``max_distance``, ``rms_distance``, ``points_measured``.
+    """
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+
+    shape, file_unit = read_step(path, units)
+    n_faces = 0
+    ex = TopExp_Explorer(shape, TopAbs_FACE)
+    while ex.More():
+        n_faces += 1
+        ex.Next()
+    out = {"valid": _valid(shape), "faces": n_faces, "area": _area(shape), "file_units": file_unit}
+    if points is not None:
+        P = np.asarray(points, dtype=np.float64)
+        if max_points is not None and len(P) > max_points:
+            P = P[np.sort(np.random.default_rng(seed).choice(len(P), max_points, replace=False))]
+        dist = _distances(shape, P)
+        out.update(max_distance=float(dist.max()), rms_distance=float(np.sqrt(np.mean(dist**2))),
+                   points_measured=int(len(P)))
+    return out

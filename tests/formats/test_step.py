@@ -1,0 +1,166 @@
+"""STEP output (issue 15): trimmed B-spline faces fitted to the map, read back with OpenCascade."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from conftest import shared_mesh
+
+pytest.importorskip("OCP")
+
+import heatparam  # noqa: E402
+from heatparam import datasets  # noqa: E402
+from heatparam.errors import HeatparamError  # noqa: E402
+from heatparam.formats import load_mesh  # noqa: E402
+from heatparam.formats.step import inspect_step, write_step  # noqa: E402
+
+
+def _mesh_area(V, F):
+    return float(0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1).sum())
+
+
+def _check(path, V, F, rep, max_points=None):
+    """The acceptance items: valid shape, area within 1%, every measured vertex within the fit tolerance."""
+    back = inspect_step(path, V, max_points=max_points)
+    assert back["valid"]
+    area = _mesh_area(V, F)
+    assert abs(back["area"] - area) <= 0.01 * area, (back["area"], area)
+    assert back["max_distance"] <= rep["tolerance"], (back["max_distance"], rep["tolerance"])
+    # the report's deviations are those of the written surface: the read-back distances cannot exceed them
+    assert back["max_distance"] <= rep["max_deviation"] * (1 + 1e-6) + 1e-12
+    assert rep["max_deviation"] <= rep["tolerance"] and not rep["warnings"]
+    return back
+
+
+@pytest.fixture(scope="module")
+def holed_part():
+    s = datasets.cylinder_with_holes()
+    return s.V, s.F, heatparam.parameterize(s.V, s.F), s.uv_true
+
+
+def test_developable_part_with_holes(holed_part, tmp_path):
+    V, F, r, _ = holed_part
+    out = tmp_path / "part.step"
+    rep = write_step(out, V, F, r.uv, r.Fuv, r.uv_vertex)
+    diag = np.linalg.norm(V.max(0) - V.min(0))
+    assert rep["tolerance"] == pytest.approx(1e-3 * diag)
+    assert rep["faces"] == 1 and rep["charts"][0]["degree"] == [3, 3]
+    back = _check(out, V, F, rep)
+    assert back["faces"] == 1 and back["points_measured"] == len(V)
+    assert not list(tmp_path.glob(".*"))  # no temporary file left beside the output
+
+
+def test_two_charts_are_sewn(holed_part, tmp_path):
+    V, F, r, uv_true = holed_part
+    # a cut between the left hole and the notch (the generator's flat coordinates): two disks, one with a hole
+    chart = (uv_true[F].mean(1)[:, 0] > -0.22).astype(np.int64)
+    out = tmp_path / "two.step"
+    rep = write_step(out, V, F, r.uv, r.Fuv, r.uv_vertex, chart=chart)
+    assert rep["faces"] == 2 and len(rep["charts"]) == 2 and rep["sewn"]
+    back = _check(out, V, F, rep)
+    assert back["faces"] == 2
+
+
+def test_tolerance_and_units_round_trip(holed_part, tmp_path):
+    V, F, r, _ = holed_part
+    out = tmp_path / "part_in.step"
+    tol = 0.5e-3 * np.linalg.norm(V.max(0) - V.min(0))  # half the default
+    rep = write_step(out, V, F, r.uv, r.Fuv, r.uv_vertex, tolerance=tol, units="in")
+    assert rep["tolerance"] == tol and rep["units"] == "in" and rep["max_deviation"] <= tol
+    back = inspect_step(out, V, max_points=300)  # in the file's own unit: the coordinates as given
+    assert back["file_units"].lower() == "inch" and back["max_distance"] <= tol
+    mm = inspect_step(out, 25.4 * V, units="mm", max_points=300)  # OpenCascade converts inches to mm on reading
+    assert mm["max_distance"] <= 25.4 * tol
+    assert mm["area"] == pytest.approx(25.4**2 * back["area"], rel=1e-6)
+    default = tmp_path / "part_mm.step"
+    write_step(default, V, F, r.uv, r.Fuv, r.uv_vertex, tolerance=tol)
+    assert inspect_step(default)["file_units"] == "millimetre"
+
+
+def test_same_input_same_file_and_no_clobber_on_error(holed_part, tmp_path):
+    V, F, r, _ = holed_part
+    (tmp_path / "1").mkdir()
+    (tmp_path / "2").mkdir()
+    a, b = tmp_path / "1" / "p.step", tmp_path / "2" / "p.step"
+    write_step(a, V, F, r.uv, r.Fuv, r.uv_vertex)
+    write_step(b, V, F, r.uv, r.Fuv, r.uv_vertex)
+    assert a.read_bytes() == b.read_bytes()
+    before = a.read_bytes()
+    with pytest.raises(HeatparamError, match="units"):
+        write_step(a, V, F, r.uv, r.Fuv, r.uv_vertex, units="furlong")
+    with pytest.raises(HeatparamError, match="does not exist"):
+        write_step(tmp_path / "nowhere" / "x.step", V, F, r.uv, r.Fuv, r.uv_vertex)
+    assert a.read_bytes() == before
+
+
+def _face_normals_agree(path, V, F, uv):
+    """Fraction of vertices where the (only) face's oriented normal at the vertex's uv points like the mesh's."""
+    import igl
+    from OCP.BRepGProp import BRepGProp_Face
+    from OCP.gp import gp_Pnt, gp_Vec
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    from heatparam.formats.step import read_step
+
+    shape, _ = read_step(path)
+    props = BRepGProp_Face(TopoDS.Face(TopExp_Explorer(shape, TopAbs_FACE).Current()))
+    N = igl.per_vertex_normals(V, F)
+    agree = 0
+    for i in range(0, len(V), 7):
+        p, nrm = gp_Pnt(), gp_Vec()
+        props.Normal(float(uv[i, 0]), float(uv[i, 1]), p, nrm)
+        agree += float(np.dot(nrm.Coord(), N[i])) > 0
+    return agree / len(range(0, len(V), 7))
+
+
+def test_seamed_and_mirrored_maps(holed_part, tmp_path):
+    V, F, _, _ = holed_part
+    r = heatparam.parameterize(V, F, seams="holes")  # holes cut open to the border: seam rows in uv
+    assert r.seamed
+    out = tmp_path / "seamed.step"
+    rep = write_step(out, V, F, r.uv, r.Fuv, r.uv_vertex)
+    _check(out, V, F, rep, max_points=400)
+    # the same map mirrored (clockwise in uv): the face is reversed so that its normal still follows the mesh's
+    s = datasets.cylinder_with_holes()
+    mirrored = s.uv_true * [-1.0, 1.0]
+    out = tmp_path / "mirrored.step"
+    rep = write_step(out, V, F, mirrored)
+    _check(out, V, F, rep, max_points=400)
+    assert _face_normals_agree(out, V, F, mirrored) == 1.0
+    straight = tmp_path / "straight.step"
+    write_step(straight, V, F, s.uv_true)
+    assert _face_normals_agree(straight, V, F, s.uv_true) == 1.0
+
+
+def test_bad_input(holed_part, tmp_path):
+    V, F, r, _ = holed_part
+    with pytest.raises(HeatparamError, match="chart"):
+        write_step(tmp_path / "x.step", V, F, r.uv, r.Fuv, r.uv_vertex, chart=np.zeros(3))
+    with pytest.raises(HeatparamError, match="tolerance"):
+        write_step(tmp_path / "x.step", V, F, r.uv, r.Fuv, r.uv_vertex, tolerance=0)
+    with pytest.raises(HeatparamError, match="out of range"):
+        write_step(tmp_path / "x.step", V, F, r.uv, r.Fuv + len(r.uv), r.uv_vertex)
+    bad = r.uv.copy()
+    bad[0] = np.nan
+    with pytest.raises(HeatparamError, match="NaN"):
+        write_step(tmp_path / "x.step", V, F, bad, r.Fuv, r.uv_vertex)
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.slow
+def test_camelhead(tmp_path):
+    V, F = load_mesh(shared_mesh("camelhead.off"))
+    r = heatparam.parameterize(V, F)
+    out = tmp_path / "camelhead.step"
+    t = time.perf_counter()
+    rep = write_step(out, V, F, r.uv, r.Fuv, r.uv_vertex)
+    seconds = time.perf_counter() - t
+    back = _check(out, V, F, rep)
+    assert back["points_measured"] == len(V)
+    print(f"camelhead: {rep['charts'][0]['control_points']} control points, max {rep['max_deviation']:.3g} "
+          f"rms {rep['rms_deviation']:.3g} (tol {rep['tolerance']:.3g}), write {seconds:.1f} s")
