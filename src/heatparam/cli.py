@@ -1,4 +1,4 @@
-"""The ``heatparam`` command: unwrap, geodesics, evaluate, demo.
+"""The ``heatparam`` command: unwrap, batch, geodesics, evaluate, demo.
 
 The unwrap options are generated from ``heatparam.options.OPTIONS`` (choices, defaults and help written once).
 Bad input ends with one line on stderr (``heatparam: error: ...``), exit code 2, no traceback, and no output
@@ -110,6 +110,17 @@ def build_parser() -> argparse.ArgumentParser:
     u.add_argument("--preview", metavar="P.png", help="write a PNG: UV layout coloured by distortion + 3D view")
     u.add_argument("--quiet", action="store_true", help="no progress output")
 
+    b = sub.add_parser("batch", help="flatten many meshes (files, folders, globs) on a Dask cluster",
+                       description="Run the unwrap pipeline on every mesh found, one task per mesh, on a local Dask "
+                                   "cluster (default) or the scheduler at --scheduler; resumable; writes "
+                                   "OUTDIR/summary.csv, summary.json and index.html.")
+    from heatparam.batching import add_batch_arguments
+
+    add_batch_arguments(b)
+    for opt in cli_options():
+        _add_option(b, opt)
+    b.add_argument("--quiet", action="store_true", help="no progress output")
+
     g = sub.add_parser("geodesics", help="heat-method geodesic distances from source vertices",
                        description="Write an (n, k) .npy array: column j = distances from source j.")
     g.add_argument("input", help="mesh file")
@@ -129,7 +140,8 @@ def build_parser() -> argparse.ArgumentParser:
     m = sub.add_parser("demo", help="run on a built-in generated surface (no download)",
                        description="Unwrap a generated scan-like part (a noisy cylinder patch with two holes, "
                                    "in mm) where the heat geodesics and MDS start the refinement, and write "
-                                   "OBJ, report and preview; stderr says which stages ran and why.")
+                                   "OBJ, DXF, SVG (strain map), STEP, report and preview; stderr says which "
+                                   "stages ran and why.")
     m.add_argument("-o", "--output-dir", default="heatparam-demo", help="folder for the outputs "
                    "(created; default: %(default)s)")
     m.add_argument("--quiet", action="store_true", help="no progress output")
@@ -236,12 +248,36 @@ def cmd_demo(args: argparse.Namespace) -> int:
         print(f"demo: {summary['surface']} ({summary['vertices']} vertices, {summary['units']}, noise "
               f"{summary['noise']}) → {outdir}/{', '.join(summary['outputs'])}", file=sys.stderr)
         print("demo: stages: " + "; ".join(f"{k}: {v}" for k, v in summary["stages"].items()), file=sys.stderr)
-        if summary["pending_outputs"]:
-            print(f"demo: not written yet: {', '.join(summary['pending_outputs'])}", file=sys.stderr)
     return 0
 
 
-COMMANDS = {"unwrap": cmd_unwrap, "geodesics": cmd_geodesics, "evaluate": cmd_evaluate, "demo": cmd_demo}
+def cmd_batch(args: argparse.Namespace) -> int:
+    """``heatparam batch``: 0 when every mesh succeeded (or was up to date), 1 when any failed or was refused
+    (listed on stderr); usage errors raise HeatparamError (exit 2)."""
+    from heatparam.batching import run_batch
+
+    try:
+        summary = run_batch(args.inputs, args.output_dir, formats=args.format, force=args.force,
+                            workers=args.workers, scheduler=args.scheduler, task_timeout=args.task_timeout,
+                            task_memory=args.task_memory, preview=args.preview, progress=not args.quiet,
+                            options=make_options(**{o.name: getattr(args, o.name) for o in cli_options()}))
+    except KeyboardInterrupt:
+        print(f"heatparam: interrupted: the meshes in flight were dropped; {args.output_dir}/summary.json lists "
+              "what is done — rerun the same command to resume", file=sys.stderr)
+        return 130
+    bad = [r for r in summary["rows"] if r["status"] in ("failed", "refused")]
+    c = summary["counts"]
+    if not args.quiet or bad:
+        print(f"heatparam: {len(summary['rows'])} meshes: {c['ok']} ok, {c['skipped']} up to date, "
+              f"{c['refused']} refused, {c['failed']} failed in {summary['wall_s']:.1f} s → "
+              f"{Path(args.output_dir) / 'summary.csv'}", file=sys.stderr)
+    for r in bad:
+        print(f"heatparam: {r['status']}: {r['input']}: {r['reason']}", file=sys.stderr)
+    return 1 if bad else 0
+
+
+COMMANDS = {"unwrap": cmd_unwrap, "batch": cmd_batch, "geodesics": cmd_geodesics, "evaluate": cmd_evaluate,
+            "demo": cmd_demo}
 
 
 def main(argv: list[str] | None = None) -> int:

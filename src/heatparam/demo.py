@@ -15,31 +15,9 @@ UNITS = "mm"
 #: Scanner noise of the part (× its mean edge length) and its seed.
 NOISE, SEED = 0.1, 0
 
-#: Files the demo writes today, in ``outdir``.
-OUTPUTS = ("demo.obj", "demo-report.json", "demo-preview.png")
-
-# TODO(lead, issue 15 items 1-3): once heatparam.formats.dxf / svg / step exist, the demo also writes
-#   demo.dxf   <- heatparam.formats.dxf.write_dxf(path, pattern, units)
-#   demo.svg   <- heatparam.formats.svg.write_svg(path, pattern, units)
-#   demo.step  <- heatparam.formats.step.write_step(path, pattern, units)
-# with units=UNITS: wire them in `write_flat_patterns` below (it lists what is pending until then).
-PENDING_OUTPUTS = {"demo.dxf": "heatparam.formats.dxf", "demo.svg": "heatparam.formats.svg",
-                   "demo.step": "heatparam.formats.step"}
-
-
-def write_flat_patterns(outdir: Path, V, F, result) -> tuple[list[str], list[str]]:
-    """Hook for the DXF / SVG / STEP writers (issue 15): returns (written, pending) file names. Today it writes
-    nothing: the writers' ``pattern`` argument is defined by their own modules, which the lead wires here."""
-    import importlib.util
-
-    pending = []
-    for name, module in PENDING_OUTPUTS.items():
-        try:
-            found = importlib.util.find_spec(module) is not None
-        except ModuleNotFoundError:
-            found = False
-        pending.append(f"{name} ({module} {'found, not wired yet' if found else 'not available'})")
-    return [], pending
+#: Files the demo writes in ``outdir``: the map (OBJ), its flat pattern (DXF, SVG with the strain map), the fitted
+#: trimmed B-spline faces (STEP), the report and the preview.
+OUTPUTS = ("demo.obj", "demo.dxf", "demo.svg", "demo.step", "demo-report.json", "demo-preview.png")
 
 
 def stages(report: dict) -> dict[str, str]:
@@ -75,21 +53,21 @@ def stages(report: dict) -> dict[str, str]:
 
 
 def run(outdir: Path, quiet: bool = False) -> tuple[object, dict]:
-    """Generate the part, unwrap it, write :data:`OUTPUTS` into ``outdir`` (atomically, each). Returns the
+    """Generate the part, unwrap it, write :data:`OUTPUTS` into ``outdir`` (all or nothing). Returns the
     pipeline ``Result`` and the demo's summary (``report["demo"]``)."""
     from heatparam import datasets
     from heatparam.pipeline import parameterize
-    from heatparam.unwrap import write_results
+    from heatparam.unwrap import plan, write_outputs
 
     shape = datasets.noisy_scan_part(noise=NOISE, seed=SEED)
     result = parameterize(shape.V, shape.F, progress=not quiet)
     uv, report = result
     report["input"] = f"generated:{shape.name}"
     report["metrics"]["layout_error_rel"] = datasets.layout_error(uv, shape.uv_true[result.uv_vertex])
-    written, pending = write_flat_patterns(outdir, shape.V, shape.F, result)
     report["demo"] = {"surface": shape.name, "vertices": len(shape.V), "units": UNITS,
                       "noise": f"{NOISE:g} x mean edge, Gaussian, seed {SEED}", "stages": stages(report),
-                      "outputs": [*OUTPUTS, *written], "pending_outputs": pending}
-    write_results(shape.V, shape.F, result, outdir / "demo.obj", outdir / "demo-report.json",
-                   outdir / "demo-preview.png", quiet=quiet, units=UNITS)
+                      "outputs": list(OUTPUTS)}
+    plans = plan([outdir / f for f in OUTPUTS if not f.endswith((".json", ".png"))], outdir / "demo-report.json",
+                 outdir / "demo-preview.png")
+    write_outputs(shape.V, shape.F, result, plans, units=UNITS, strain_map=True, quiet=quiet)
     return result, report["demo"]

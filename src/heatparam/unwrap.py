@@ -129,3 +129,37 @@ def write_results(V, F, result, out: Path, rep: Path | None, prev: Path | None, 
                   units: str | None = None) -> None:
     """OBJ, report (optional) and preview (optional) of a pipeline ``Result``, all or nothing."""
     write_outputs(V, F, result, plan([out], rep, prev), units=units or DEFAULT_UNITS, quiet=quiet)
+
+
+def unwrap_file(input, outputs, report=None, preview=None, options=None, quiet: bool = True,
+                units: str = DEFAULT_UNITS, sheet=None, strain_map: bool = False, fit_tolerance: float | None = None):
+    """What ``heatparam unwrap`` does, as a function: check every output path, load ``input``, flatten it, write
+    every output (all or nothing).
+
+    Parameters
+    ----------
+    input : mesh file (.obj .off .ply .stl .glb .gltf).
+    outputs : a path or a list of paths; the format follows each extension (.obj .ply .glb .dxf .svg .step).
+    report, preview : optional JSON report and PNG preview paths.
+    options : pipeline :class:`~heatparam.options.Options` (progress on stderr per ``options.progress``).
+    quiet : do not print the one-line summary on stderr.
+    units, sheet, strain_map, fit_tolerance : as ``heatparam unwrap``'s flags of the same names.
+
+    Returns
+    -------
+    The pipeline's ``Result`` (``uv, report``), its report's ``input`` set to ``str(input)``. Raises
+    ``HeatparamError`` (one line) for bad input; nothing is written then.
+    """
+    from heatparam.formats import load_mesh
+    from heatparam.options import make_options
+    from heatparam.pipeline import parameterize
+
+    outputs = [outputs] if isinstance(outputs, (str, Path)) else list(outputs)
+    plans = plan([str(o) for o in outputs], str(report) if report else None, str(preview) if preview else None,
+                 inputs=(str(input),))
+    V, F = load_mesh(input)
+    result = parameterize(V, F, make_options(options))
+    result.report["input"] = str(input)
+    write_outputs(V, F, result, plans, units=units, sheet=sheet, strain_map=strain_map, quiet=quiet,
+                  fit_tolerance=fit_tolerance)
+    return result

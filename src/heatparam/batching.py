@@ -1,0 +1,709 @@
+"""``heatparam batch``: the unwrap pipeline over many meshes, one Dask task per mesh.
+
+A local Dask cluster (``distributed.LocalCluster``, one single-threaded worker process per core) by default, or
+any running scheduler (``--scheduler tcp://host:8786`` or a scheduler JSON file). The Python API is
+``heatparam.batch(paths, out_dir, client=None, **options)`` (= :func:`run_batch`).
+
+Design (and why):
+
+- **The job is ``heatparam unwrap``** (``unwrap.unwrap_file``), so a batch output is the ``unwrap`` output, byte for
+  byte (the report JSON differs only by its timings and the ``batch`` manifest below).
+- **One subprocess per mesh**, started by the Dask task, so that a task can be held to a wall-time limit
+  (``--task-timeout``) and a memory limit (``--task-memory``; default: the Dask worker's ``memory_limit``): the
+  task polls the subprocess's resident memory and kills it past either limit. A thread cannot be stopped from
+  outside, a subprocess can; it also gives each mesh its own peak-memory figure, and a crash (segfault, OOM
+  kill) of one mesh takes down only its subprocess. The subprocess dies with its worker (``PR_SET_PDEATHSIG`` on
+  Linux): killing a worker kills the meshes it was running, and Dask reruns them elsewhere. A worker that dies is
+  retried once (our ``LocalCluster`` sets ``distributed.scheduler.allowed-failures`` to 1; an external scheduler
+  uses its own setting, default 3), then the mesh is recorded as failed.
+- **Never a partial file**: the subprocess writes into a hidden folder ``.heatparam-tmp-*`` beside the outputs;
+  only when it succeeded are the files renamed into place, the report JSON last. Leftover temporary folders (a
+  killed worker, Ctrl-C) are removed at the start and at the end of every batch.
+- **Resumability manifest = the report JSON**: ``report["batch"]`` records the options hash (every pipeline
+  option, the formats, the preview flag and the heatparam version) and the input's size, ``mtime_ns`` and
+  SHA-256. A rerun skips an input when its report exists with the same options hash, the input's size and
+  ``mtime_ns`` are those recorded (so touching or editing the input redoes it; comparing recorded values rather
+  than clocks works across machines of a cluster) and every requested output exists. ``--force`` redoes all.
+  Refused and failed inputs have no outputs and are tried again on every run.
+
+Outputs: ``OUTDIR/<path relative to the input folder>/<stem>.obj`` and ``<stem>.json`` (the report; inputs
+given as files or globs go to the top of OUTDIR, or below the glob's fixed folder), plus ``OUTDIR/summary.csv``,
+``summary.json`` and ``index.html`` (a sortable table with the previews of ``--preview``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import csv
+import ctypes
+import dataclasses
+import glob
+import hashlib
+import html
+import importlib
+import importlib.util
+import io as _io
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path, PurePosixPath
+
+from heatparam import __version__
+from heatparam.errors import HeatparamError, ResourceError
+from heatparam.options import Options, make_options
+
+#: ``--format`` names: the module each needs (None: nothing beyond heatparam's own). The report JSON is always
+#: written; every format is written by the unwrap job (``unwrap.write_outputs``), all outputs of a mesh together.
+FORMATS = {"obj": None, "json": None, "ply": None, "glb": None, "dxf": "ezdxf", "svg": None, "step": "OCP"}
+#: Mesh suffixes searched in folders (heatparam.formats.MESH_SUFFIXES; a test checks they agree).
+MESH_SUFFIXES = (".obj", ".off", ".ply", ".stl", ".glb", ".gltf")
+TMP_PREFIX = ".heatparam-tmp-"
+STATUSES = ("ok", "refused", "failed", "skipped")
+COLUMNS = ("input", "output", "status", "reason", "vertices", "charts", "iso_mean", "flips", "crossings",
+           "seconds", "peak_mem_mb")
+#: How often a task checks its subprocess's memory and time, in seconds.
+POLL_S = 0.05
+
+
+# ---------------------------------------------------------------------------------------------------- discovery
+
+@dataclasses.dataclass(frozen=True)
+class Item:
+    """One input mesh and where its outputs go: ``out_dir / rel / (stem + ext)``."""
+
+    input: Path
+    rel: PurePosixPath
+    stem: str
+
+    def output(self, out_dir: Path, ext: str) -> Path:
+        return out_dir / self.rel / f"{self.stem}.{ext}"
+
+
+def _is_glob(s: str) -> bool:
+    return any(c in s for c in "*?[")
+
+
+def _glob_root(pattern: str) -> Path:
+    """The fixed folder in front of a glob pattern's first wildcard."""
+    parts = Path(pattern).parts
+    fixed = []
+    for part in parts[:-1]:
+        if _is_glob(part):
+            break
+        fixed.append(part)
+    return Path(*fixed) if fixed else Path(".")
+
+
+def _inside(p: Path, folder: Path) -> bool:
+    try:
+        p.relative_to(folder)
+        return True
+    except ValueError:
+        return False
+
+
+def discover(inputs: list[str | os.PathLike], out_dir: str | os.PathLike) -> list[Item]:
+    """The meshes named by ``inputs`` (files, folders searched recursively by mesh suffix, globs), in order.
+
+    Files given by name are taken whatever their suffix (an unsupported one is then refused by the job). Hidden
+    folders and ``out_dir`` are not searched. Two inputs that would write the same output: if their suffixes
+    differ (``part.obj`` and ``part.off`` in one folder) the stems become ``part-obj`` and ``part-off``;
+    otherwise it is a usage error.
+
+    Returns
+    -------
+    list of :class:`Item`, sorted by output path. Raises ``HeatparamError`` for an input that does not exist,
+    a glob or folder that holds no mesh, an empty list, or colliding outputs.
+    """
+    out = Path(out_dir).resolve()
+    found: dict[Path, tuple[Path, PurePosixPath]] = {}  # resolved input -> (path as given, rel folder)
+
+    def add(p: Path, root: Path | None) -> None:
+        r = p.resolve()
+        if _inside(r, out) or r in found:
+            return
+        rel = PurePosixPath(p.parent.resolve().relative_to(root.resolve()).as_posix()) if root else PurePosixPath()
+        found[r] = (p, rel)
+
+    if not inputs:
+        raise HeatparamError("no input: give mesh files, folders or globs")
+    for s in map(str, inputs):
+        p = Path(s)
+        if p.is_file():
+            add(p, None)
+        elif p.is_dir():
+            meshes = [q for q in sorted(p.rglob("*")) if q.suffix.lower() in MESH_SUFFIXES and q.is_file()
+                      and not any(x.startswith(".") for x in q.relative_to(p).parts)]
+            if not meshes:
+                raise HeatparamError(f"folder {p} holds no mesh ({', '.join(MESH_SUFFIXES)})")
+            for q in meshes:
+                add(q, p)
+        elif _is_glob(s):
+            root = _glob_root(s)
+            hits = [Path(h) for h in sorted(glob.glob(s, recursive=True)) if Path(h).is_file()]
+            if not hits:
+                raise HeatparamError(f"no file matches {s}")
+            for h in hits:
+                add(h, root)
+        else:
+            raise HeatparamError(f"cannot read {p}: no such file or folder")
+    if not found:
+        raise HeatparamError(f"no mesh to flatten (every input lies inside the output folder {out_dir})")
+    groups: dict[tuple[PurePosixPath, str], list[tuple[Path, PurePosixPath]]] = {}
+    for p, rel in found.values():
+        groups.setdefault((rel, p.stem), []).append((p, rel))
+    items = []
+    for (rel, stem), members in groups.items():
+        if len(members) == 1:
+            items.append(Item(members[0][0], rel, stem))
+            continue
+        suffixes = [p.suffix.lower() for p, _ in members]
+        if len(set(suffixes)) < len(suffixes):
+            names = ", ".join(str(p) for p, _ in members)
+            raise HeatparamError(f"{names} would all be written to {Path(out_dir) / rel / stem}.obj — give "
+                                 "their common folder instead of the files, or flatten them in separate batches")
+        items += [Item(p, rel, f"{stem}-{p.suffix[1:].lower()}") for p, _ in members]
+    return sorted(items, key=lambda it: (str(it.rel), it.stem))
+
+
+# ----------------------------------------------------------------------------------------------------- manifest
+
+def options_hash(options: Options, formats: tuple[str, ...], preview: bool) -> str:
+    """SHA-256 (16 hex digits) of everything that decides an output's bytes: pipeline options (not ``progress``),
+    formats, preview flag, heatparam version."""
+    fields = {k: v for k, v in dataclasses.asdict(options).items() if k != "progress"}
+    key = json.dumps({"options": fields, "formats": sorted(formats), "preview": preview, "version": __version__},
+                     sort_keys=True, default=str)
+    return hashlib.sha256(key.encode()).hexdigest()[:16]
+
+
+def _file_sha256(p: Path) -> str:
+    h = hashlib.sha256()
+    with open(p, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _expected_outputs(item: Item, out_dir: Path, formats: tuple[str, ...], preview: bool) -> list[Path]:
+    exts = [f for f in formats if f != "json"] + (["png"] if preview else []) + ["json"]
+    return [item.output(out_dir, e) for e in exts]
+
+
+def up_to_date(item: Item, out_dir: Path, opt_hash: str, formats: tuple[str, ...], preview: bool) -> dict | None:
+    """The report of ``item``'s earlier outputs when they can be kept (see module docstring), else None."""
+    rep_path = item.output(out_dir, "json")
+    try:
+        report = json.loads(rep_path.read_text())
+        st = item.input.stat()
+        man = report["batch"]
+        if (man["options_hash"] != opt_hash or man["input"]["size"] != st.st_size
+                or man["input"]["mtime_ns"] != st.st_mtime_ns):
+            return None
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if not all(p.is_file() for p in _expected_outputs(item, out_dir, formats, preview)):
+        return None
+    return report
+
+
+def _charts(report: dict) -> int:
+    c = report.get("charts", 1)
+    return len(c) if isinstance(c, list | tuple) else int(c)
+
+
+def _previous_refusals(out_dir: Path) -> dict:
+    """The inputs the last batch into ``out_dir`` refused for good (``summary.json``'s ``refusals``)."""
+    try:
+        return dict(json.loads((out_dir / "summary.json").read_text()).get("refusals", {}))
+    except (OSError, ValueError, AttributeError):
+        return {}
+
+
+def _refused_again(item: Item, refusals: dict, opt_hash: str, out_dir: Path) -> dict | None:
+    """A refused row, not rerun, when the last batch refused this unchanged input with the same options (the
+    refusal is deterministic: a malformed or closed mesh); it stays refused (exit code 1), with its reason."""
+    prev = refusals.get(str(item.input))
+    try:
+        st = item.input.stat()
+        if prev is None or prev["options_hash"] != opt_hash or (prev["size"], prev["mtime_ns"]) != (
+                st.st_size, st.st_mtime_ns):
+            return None
+    except (OSError, KeyError, TypeError):
+        return None
+    row = _bad_row(item, out_dir, "refused", prev["reason"])
+    row["_refusal"] = {k: prev[k] for k in ("options_hash", "size", "mtime_ns")}
+    return row
+
+
+def _row_from_report(item: Item, out_dir: Path, status: str, report: dict, seconds: float | None,
+                     peak_mb: float | None) -> dict:
+    m = report.get("metrics", {})
+    man = report.get("batch", {})
+    return {
+        "input": str(item.input), "output": str(item.output(out_dir, "obj").relative_to(out_dir)),
+        "status": status, "reason": "up to date" if status == "skipped" else "",
+        "vertices": report.get("mesh", {}).get("vertices"), "charts": _charts(report),
+        "iso_mean": m.get("iso_mean"), "flips": m.get("flips"), "crossings": m.get("boundary_crossings"),
+        "seconds": round(seconds if seconds is not None else man.get("seconds", 0.0), 3),
+        "peak_mem_mb": peak_mb if peak_mb is not None else man.get("peak_mem_mb"),
+    }
+
+
+def _bad_row(item: Item, out_dir: Path, status: str, reason: str, seconds: float = 0.0,
+             peak_mb: float | None = None) -> dict:
+    return {"input": str(item.input), "output": str(item.output(out_dir, "obj").relative_to(out_dir)),
+            "status": status, "reason": reason, "vertices": None, "charts": None, "iso_mean": None, "flips": None,
+            "crossings": None, "seconds": round(seconds, 3), "peak_mem_mb": peak_mb}
+
+
+# ------------------------------------------------------------------------------------------ the per-mesh job
+
+def _one_line(exc: BaseException) -> str:
+    msg = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {msg[0]}" if msg else type(exc).__name__
+
+
+def _job_main(tmp: str) -> None:
+    """Subprocess entry point: run ``unwrap_file`` on the spec in ``tmp/spec.json``, outputs into ``tmp``, and
+    write ``tmp/result.json`` ({status, reason, report?})."""
+    from heatparam.formats import save_json
+    from heatparam.memory import peak_rss_bytes
+    from heatparam.unwrap import unwrap_file
+
+    tmp_p = Path(tmp)
+    spec = json.loads((tmp_p / "spec.json").read_text())
+    stem = spec["stem"]
+    t0 = time.perf_counter()
+    try:
+        opts = make_options(**spec["options"])
+        src = Path(spec["input"])
+        st = src.stat()
+        outs = [tmp_p / f"{stem}.{f}" for f in spec["formats"] if f != "json"]
+        result = unwrap_file(src, outs, None, tmp_p / f"{stem}.png" if spec["preview"] else None, opts, quiet=True)
+        report = result.report
+        report["batch"] = {
+            "options_hash": spec["options_hash"], "formats": spec["formats"], "preview": spec["preview"],
+            "input": {"path": str(src), "size": st.st_size, "mtime_ns": st.st_mtime_ns, "sha256": _file_sha256(src)},
+            "seconds": round(time.perf_counter() - t0, 3),
+            "peak_mem_mb": round(peak_rss_bytes() / 2**20, 1),
+        }
+        save_json(tmp_p / f"{stem}.json", report)
+        out = {"status": "ok", "reason": ""}
+    except HeatparamError as exc:
+        out = {"status": "refused", "reason": str(exc).strip().splitlines()[0] if str(exc).strip() else "refused",
+               # the same input and options are refused again, except for lack of memory (it depends on the moment)
+               "final": not isinstance(exc, ResourceError)}
+    except MemoryError:
+        out = {"status": "failed", "reason": "out of memory"}
+    except Exception as exc:  # any other error: one line, no traceback, the batch goes on
+        out = {"status": "failed", "reason": _one_line(exc)}
+    out["peak_mem_mb"] = round(peak_rss_bytes() / 2**20, 1)
+    (tmp_p / "result.json").write_text(json.dumps(out))
+
+
+def _die_with_parent() -> None:  # pragma: no cover - runs in the child between fork and exec
+    """Linux: the child gets SIGKILL when the thread that started it (the Dask task) dies with its worker."""
+    with contextlib.suppress(Exception):
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG = 1
+
+
+def _task_memory_default() -> int | None:
+    try:
+        from distributed import get_worker
+
+        limit = get_worker().memory_manager.memory_limit
+        return int(limit) if limit else None
+    except Exception:  # not on a Dask worker, or an older distributed
+        return None
+
+
+def run_job(spec: dict) -> dict:
+    """One mesh, as a Dask task: the job in a subprocess under the time and memory limits; outputs renamed into
+    place on success. Returns the summary row (a dict of :data:`COLUMNS`)."""
+    import psutil
+
+    item = Item(Path(spec["input"]), PurePosixPath(spec["rel"]), spec["stem"])
+    out_dir = Path(spec["out_dir"])
+    dest = out_dir / item.rel
+    dest.mkdir(parents=True, exist_ok=True)
+    tmp = dest / f"{TMP_PREFIX}{item.stem}-{uuid.uuid4().hex[:8]}"
+    tmp.mkdir()
+    t0 = time.perf_counter()
+    timeout, mem_limit = spec["task_timeout"], spec["task_memory"] or _task_memory_default()
+    peak, reason = 0, None
+    try:
+        (tmp / "spec.json").write_text(json.dumps(spec))
+        with open(tmp / "log.txt", "wb") as log:
+            proc = subprocess.Popen(
+                [sys.executable, "-c", "import sys; from heatparam.batching import _job_main; _job_main(sys.argv[1])",
+                 str(tmp)], stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+                preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
+            try:
+                ps = psutil.Process(proc.pid)
+                while proc.poll() is None:
+                    with contextlib.suppress(psutil.Error):
+                        rss = ps.memory_info().rss
+                        peak = max(peak, rss)
+                        if mem_limit and rss > mem_limit:
+                            reason = f"exceeded the task memory limit ({mem_limit / 2**20:.0f} MiB)"
+                    if timeout and time.perf_counter() - t0 > timeout:
+                        reason = f"timed out after {timeout:g} s (--task-timeout)"
+                    if reason:
+                        proc.kill()
+                        proc.wait()
+                        break
+                    time.sleep(POLL_S)
+            finally:
+                if proc.poll() is None:  # an exception here (the task cancelled): never leave the mesh running
+                    proc.kill()
+                    proc.wait()
+        seconds = time.perf_counter() - t0
+        peak_mb = round(peak / 2**20, 1) if peak else None
+        if reason:
+            return _bad_row(item, out_dir, "failed", reason, seconds, peak_mb)
+        try:
+            res = json.loads((tmp / "result.json").read_text())
+        except (OSError, ValueError):
+            rc = proc.returncode
+            why = f"exit code {rc}"
+            if rc < 0:
+                why = f"signal {-rc}"
+                with contextlib.suppress(ValueError):
+                    why += f" ({signal.Signals(-rc).name})"
+            last = (tmp / "log.txt").read_text(errors="replace").strip().splitlines()
+            return _bad_row(item, out_dir, "failed", f"the job died: {why}" + (f": {last[-1]}" if last else ""),
+                            seconds, peak_mb)
+        peak_mb = max(peak_mb or 0.0, res.get("peak_mem_mb") or 0.0) or None
+        if res["status"] != "ok":
+            row = _bad_row(item, out_dir, res["status"], res["reason"], seconds, peak_mb)
+            if res.get("final"):
+                st = item.input.stat()
+                row["_refusal"] = {"options_hash": spec["options_hash"], "size": st.st_size,
+                                   "mtime_ns": st.st_mtime_ns}
+            return row
+        report = json.loads((tmp / f"{item.stem}.json").read_text())
+        for p in _expected_outputs(item, out_dir, tuple(spec["formats"]), spec["preview"]):  # report last
+            os.replace(tmp / p.name, p)
+        return _row_from_report(item, out_dir, "ok", report, seconds, peak_mb)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+# -------------------------------------------------------------------------------------------------- the batch
+
+def _clean_tmp(out_dir: Path) -> None:
+    if out_dir.is_dir():
+        for d in sorted(out_dir.rglob(f"{TMP_PREFIX}*"), reverse=True):
+            shutil.rmtree(d, ignore_errors=True)
+
+
+def parse_formats(formats: str | list[str] | tuple[str, ...]) -> tuple[str, ...]:
+    """Validate ``--format`` names (comma-separated or a list); the report ``json`` is always included."""
+    names = [f.strip().lower() for f in (formats.split(",") if isinstance(formats, str) else formats) if f.strip()]
+    for f in names:
+        if f not in FORMATS:
+            raise HeatparamError(f"unknown format {f!r}: use one of {', '.join(FORMATS)}")
+        if FORMATS[f]:
+            try:
+                available = importlib.util.find_spec(FORMATS[f]) is not None
+            except ModuleNotFoundError:  # no heatparam.formats package at all
+                available = False
+            if not available:
+                raise HeatparamError(f"format {f} is not available in this installation (no {FORMATS[f]})")
+    if "obj" not in names:
+        names.insert(0, "obj")  # the OBJ with UVs is the map itself: always written
+    return tuple(dict.fromkeys(names + ["json"]))
+
+
+def _parse_bytes(value) -> int | None:
+    if value in (None, "", 0, "0", "none"):
+        return None
+    if isinstance(value, int | float):
+        return int(value)
+    from dask.utils import parse_bytes
+
+    try:
+        return int(parse_bytes(value))
+    except (ValueError, TypeError):
+        raise HeatparamError(f"task memory must be a size like 2GB or 500MiB, got {value!r}") from None
+
+
+@contextlib.contextmanager
+def _client(client, scheduler: str | None, workers: int | None):
+    """The Dask client to use: ``client`` as given, one connected to ``scheduler`` (an address or a scheduler
+    JSON file), or a new LocalCluster of ``workers`` single-threaded processes (closed at the end)."""
+    import dask
+    from distributed import Client, LocalCluster
+
+    if client is not None:
+        yield client
+        return
+    if scheduler:
+        try:
+            c = (Client(scheduler_file=scheduler, timeout="20s") if scheduler.endswith(".json")
+                 else Client(scheduler, timeout="20s"))
+        except OSError as exc:
+            raise HeatparamError(f"cannot reach the Dask scheduler at {scheduler}: {_one_line(exc)}") from None
+        try:
+            yield c
+        finally:
+            c.close()
+        return
+    n = workers or os.cpu_count() or 1
+    dashboard = ":0"  # a free port (the scheduler always serves HTTP; the dashboard needs bokeh)
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=dashboard,
+                               silence_logs=50)
+    try:
+        c = Client(cluster)
+        try:
+            yield c
+        finally:
+            c.close()
+    finally:
+        cluster.close()
+
+
+def _dashboard(client) -> str | None:
+    if importlib.util.find_spec("bokeh") is None:  # the scheduler names a dashboard it cannot serve
+        return None
+    try:
+        if "dashboard" in client.scheduler_info().get("services", {}):
+            return client.dashboard_link
+    except Exception:
+        pass
+    return None
+
+
+def run_batch(paths, out_dir, client=None, *, formats="obj", force: bool = False, workers: int | None = None,
+              scheduler: str | None = None, task_timeout: float | None = None, task_memory=None,
+              preview: bool = False, progress: bool = False, options: Options | None = None,
+              **option_fields) -> dict:
+    """Flatten every mesh in ``paths`` (files, folders, globs) into ``out_dir``, one Dask task per mesh.
+
+    Parameters
+    ----------
+    paths : a path or a list of paths, folders (searched recursively) and glob patterns.
+    out_dir : output folder (created).
+    client : a ``distributed.Client`` to run on; default: connect to ``scheduler``, else a LocalCluster of
+        ``workers`` processes (default: one per core), closed at the end. No cluster is started when every
+        input is up to date.
+    formats : output formats ("obj,dxf" or a list); obj and the json report are always written.
+    force : redo inputs whose outputs are up to date.
+    task_timeout : seconds one mesh may take (None = no limit).
+    task_memory : bytes (or "2GB") one mesh's process may hold; default: the worker's memory limit.
+    preview : also write ``<stem>.png`` previews (shown in index.html).
+    progress : a progress bar over meshes on stderr, and the dashboard address.
+    options, **option_fields : pipeline :class:`~heatparam.pipeline.Options` (fields override ``options``).
+
+    Returns
+    -------
+    The summary (also written to ``out_dir/summary.json``): ``{"rows": [one dict per input: COLUMNS], "counts":
+    {status: n}, "options": ..., "wall_s": ...}``. Raises ``HeatparamError`` for usage errors (nothing run).
+    """
+    t_start = time.perf_counter()
+    paths = [paths] if isinstance(paths, str | os.PathLike) else list(paths)
+    opts = make_options(options, **option_fields, progress=False)
+    opts.validate()
+    fmts = parse_formats(formats)
+    if task_timeout is not None and not task_timeout > 0:
+        raise HeatparamError(f"task timeout must be positive, got {task_timeout}")
+    mem = _parse_bytes(task_memory)
+    if workers is not None and workers < 1:
+        raise HeatparamError(f"workers must be at least 1, got {workers}")
+    if workers is not None and (scheduler or client is not None):
+        raise HeatparamError("--workers sizes the local cluster; a scheduler's workers are its own")
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise HeatparamError(f"{out} exists and is not a folder")
+    items = discover(paths, out)
+    out.mkdir(parents=True, exist_ok=True)
+    out = out.resolve()
+    items = [Item(it.input.resolve(), it.rel, it.stem) for it in items]
+    h = options_hash(opts, fmts, preview)
+    _clean_tmp(out)
+
+    rows: dict[int, dict] = {}
+    todo = []
+    refused_before = {} if force else _previous_refusals(out)
+    for i, it in enumerate(items):
+        rep = None if force else up_to_date(it, out, h, fmts, preview)
+        if rep is not None:
+            rows[i] = _row_from_report(it, out, "skipped", rep, None, None)
+        elif (prev := _refused_again(it, refused_before, h, out)) is not None:
+            rows[i] = prev
+        else:
+            todo.append(i)
+    opt_fields = {k: v for k, v in dataclasses.asdict(opts).items()}
+    specs = {i: {"input": str(items[i].input), "rel": str(items[i].rel), "stem": items[i].stem, "out_dir": str(out),
+                 "formats": list(fmts), "preview": preview, "options": opt_fields, "options_hash": h,
+                 "task_timeout": task_timeout, "task_memory": mem} for i in todo}
+    interrupted = False
+    if todo:
+        with _client(client, scheduler, workers) as c:
+            interrupted = _submit(c, items, specs, rows, out, progress)
+    _clean_tmp(out)
+    for i, it in enumerate(items):  # interrupted: a mesh whose outputs got into place is done all the same
+        if i not in rows:
+            rep = up_to_date(it, out, h, fmts, preview)
+            rows[i] = (_row_from_report(it, out, "ok", rep, None, None) if rep is not None
+                       else _bad_row(it, out, "failed", "interrupted"))
+    ordered = [rows[i] for i in range(len(items))]
+    refusals = {r["input"]: {**r.pop("_refusal"), "reason": r["reason"]} for r in ordered if "_refusal" in r}
+    counts = {s: sum(r["status"] == s for r in ordered) for s in STATUSES}
+    summary = {"heatparam_version": __version__, "out_dir": str(out), "options": opt_fields, "options_hash": h,
+               "formats": list(fmts), "wall_s": round(time.perf_counter() - t_start, 3), "counts": counts,
+               "interrupted": interrupted, "rows": ordered, "refusals": refusals}
+    write_summary(out, summary)
+    if interrupted:
+        raise KeyboardInterrupt
+    return summary
+
+
+def _submit(client, items: list[Item], specs: dict[int, dict], rows: dict[int, dict], out: Path,
+            progress: bool) -> bool:
+    """Run the jobs on ``client``, filling ``rows``; True when interrupted (Ctrl-C)."""
+    from distributed import as_completed
+    from tqdm import tqdm
+
+    if progress:
+        link = _dashboard(client)
+        if link:
+            print(f"heatparam: Dask dashboard at {link}", file=sys.stderr)
+    futures = {client.submit(run_job, spec, key=f"heatparam-{i}-{uuid.uuid4().hex[:8]}", pure=False): i
+               for i, spec in specs.items()}
+    bar = tqdm(total=len(futures), unit="mesh", disable=not progress, file=sys.stderr, desc="heatparam batch")
+    try:
+        for fut in as_completed(list(futures)):
+            i = futures[fut]
+            try:
+                rows[i] = fut.result()
+            except Exception as exc:  # a worker died twice (KilledWorker), a lost connection, a cancellation
+                why = ("its worker died twice while running it (killed, or out of memory)"
+                       if type(exc).__name__ == "KilledWorker" else _one_line(exc))
+                rows[i] = _bad_row(items[i], out, "failed", why)
+            bar.update(1)
+    except KeyboardInterrupt:
+        client.cancel(list(futures), force=True)
+        from heatparam import interrupt
+
+        interrupt.finish()  # acknowledged: the summary of what is done is still written (a later Ctrl-C is noted)
+        return True
+    finally:
+        bar.close()
+    return False
+
+
+# -------------------------------------------------------------------------------------------------- summaries
+
+def write_summary(out: Path, summary: dict) -> None:
+    """``summary.json``, ``summary.csv`` (one row per input, :data:`COLUMNS`) and ``index.html``, atomically."""
+    from heatparam.formats import atomic_write, save_json
+
+    save_json(out / "summary.json", summary)
+    buf = _io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
+    w.writeheader()
+    for r in summary["rows"]:
+        w.writerow({k: "" if r[k] is None else r[k] for k in COLUMNS})
+    with atomic_write(out / "summary.csv") as fh:
+        fh.write(buf.getvalue())
+    with atomic_write(out / "index.html") as fh:
+        fh.write(_gallery(out, summary))
+
+
+_SORT_JS = """
+document.querySelectorAll('th').forEach((th, col) => th.addEventListener('click', () => {
+  const body = th.closest('table').tBodies[0], rows = Array.from(body.rows);
+  const asc = th.dataset.asc !== '1'; th.dataset.asc = asc ? '1' : '0';
+  const key = r => { const t = r.cells[col].dataset.v ?? r.cells[col].textContent; const x = parseFloat(t);
+                     return isNaN(x) ? t : x; };
+  rows.sort((a, b) => { const x = key(a), y = key(b); return (x > y ? 1 : x < y ? -1 : 0) * (asc ? 1 : -1); });
+  rows.forEach(r => body.appendChild(r));
+}));
+"""
+
+
+def _gallery(out: Path, summary: dict) -> str:
+    """A static, sortable HTML table of the summary, with each mesh's preview when there is one."""
+    cols = [c for c in COLUMNS if c != "output"]
+    head = "".join(f"<th>{html.escape(c)}</th>" for c in ["preview", *cols])
+    body = []
+    for r in summary["rows"]:
+        png = Path(r["output"]).with_suffix(".png").as_posix()
+        img = (f'<a href="{html.escape(png)}"><img src="{html.escape(png)}" loading="lazy"></a>'
+               if (out / png).is_file() else "")
+        obj = html.escape(Path(r["output"]).as_posix())
+        cells = [f"<td>{img}</td>"]
+        for c in cols:
+            v = r[c]
+            text = "" if v is None else (f"{v:.4f}" if isinstance(v, float) and c == "iso_mean" else str(v))
+            if c == "input" and r["status"] in ("ok", "skipped"):
+                cells.append(f'<td><a href="{obj}">{html.escape(text)}</a></td>')
+            else:
+                cls = html.escape(r["status"]) if c == "status" else ""
+                cells.append(f'<td class="{cls}">{html.escape(text)}</td>')
+        body.append("<tr>" + "".join(cells) + "</tr>")
+    counts = ", ".join(f"{n} {s}" for s, n in summary["counts"].items() if n)
+    return (
+        "<!doctype html><html><head><meta charset='utf-8'><title>heatparam batch</title><style>"
+        "body{font-family:sans-serif;margin:1em}table{border-collapse:collapse}td,th{border:1px solid #ccc;"
+        "padding:2px 6px;font-size:13px}th{cursor:pointer;background:#eee}img{height:80px}"
+        ".refused{color:#b60}.failed{color:#c00}.ok{color:#070}</style></head><body>"
+        f"<h1>heatparam batch</h1><p>{len(summary['rows'])} meshes: {html.escape(counts)}; "
+        f"{summary['wall_s']:.1f} s; heatparam {html.escape(summary['heatparam_version'])}; click a column to sort."
+        f"</p><table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+        f"<script>{_SORT_JS}</script></body></html>\n"
+    )
+
+
+# ------------------------------------------------------------------------------------------------------- CLI
+
+def _positive_float(value: str) -> float:
+    try:
+        x = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {value!r}") from None
+    if not x > 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {value}")
+    return x
+
+
+def _positive_int(value: str) -> int:
+    try:
+        x = int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {value!r}") from None
+    if x < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return x
+
+
+def add_batch_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``heatparam batch`` other than the pipeline options (``cli.add_unwrap_options``)."""
+    p.add_argument("inputs", nargs="+", metavar="INPUT", help="mesh files, folders (searched recursively for "
+                   f"{' '.join(MESH_SUFFIXES)}) or globs")
+    p.add_argument("-o", "--output-dir", required=True, metavar="OUTDIR",
+                   help="output folder: OUTDIR/<relative path>/<stem>.obj and .json, summary.csv, summary.json, "
+                        "index.html")
+    p.add_argument("--format", default="obj", metavar="FMT[,FMT...]",
+                   help=f"output formats, of {', '.join(FORMATS)} (the json report is always written; default: "
+                        "%(default)s)")
+    p.add_argument("--workers", type=_positive_int, metavar="N",
+                   help="worker processes of the local Dask cluster (default: one per core)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run on this Dask scheduler (tcp://host:8786, or a scheduler JSON file) instead of a local "
+                        "cluster")
+    p.add_argument("--force", action="store_true", help="redo inputs whose outputs are up to date")
+    p.add_argument("--task-timeout", type=_positive_float, metavar="S",
+                   help="seconds one mesh may take; past it the mesh is recorded as failed (default: no limit)")
+    p.add_argument("--task-memory", metavar="SIZE",
+                   help="memory one mesh's process may hold, e.g. 4GB (default: the Dask worker's memory limit)")
+    p.add_argument("--preview", action="store_true", help="also write <stem>.png previews (shown in index.html)")
