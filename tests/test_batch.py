@@ -40,7 +40,7 @@ def _write_off(path: Path, V: np.ndarray, F: np.ndarray) -> None:
 
 
 def make_library(root: Path) -> dict[str, str]:
-    """~20 meshes: generated shapes (coarse), three shared ones (cow.off is closed), a malformed OBJ, and
+    """~20 meshes: generated shapes (coarse), three shared ones (cow.off is closed: an atlas), a malformed OBJ, and
     ``part.obj`` in two subfolders. Returns {path relative to root: expected status}."""
     gen = {
         "disk": lambda h: datasets.flat_disk(h=h), "square": lambda h: datasets.flat_square(h=h),
@@ -61,7 +61,7 @@ def make_library(root: Path) -> dict[str, str]:
     _write_obj(root / "a/part.obj", a.V, a.F)
     _write_obj(root / "b/part.obj", b.V, b.F)
     expect["a/part.obj"] = expect["b/part.obj"] = "ok"
-    for name, status in (("halftunnel.off", "ok"), ("woody.obj", "ok"), ("cow.off", "refused")):
+    for name, status in (("halftunnel.off", "ok"), ("woody.obj", "ok"), ("cow.off", "ok")):
         (root / "shared").mkdir(exist_ok=True)
         (root / "shared" / name).write_bytes(shared_mesh(name).read_bytes())
         expect[f"shared/{name}"] = status
@@ -123,12 +123,12 @@ def test_local_cluster_equals_unwrap_and_resumes(library, tmp_path, capsys):
     out = tmp_path / "out"
     code = main(["batch", str(root), "-o", str(out), "--workers", "2", "--quiet"])
     err = capsys.readouterr().err
-    assert code == 1  # the malformed and the closed mesh are refused
+    assert code == 1  # the malformed mesh is refused (the closed one becomes an atlas)
     rows = _check_outputs(root, out, expect, refs)
-    assert "broken.obj" in err and "cow.off" in err
+    assert "broken.obj" in err and "cow.off" not in err
     broken = rows[str((root / "bad/broken.obj").resolve())]
     assert broken["reason"].startswith("cannot read")
-    assert "closed" in rows[str((root / "shared/cow.off").resolve())]["reason"]
+    assert int(rows[str((root / "shared/cow.off").resolve())]["charts"]) > 1
     # part.obj in a/ and b/: two outputs, no clash
     assert (out / "a/part.obj").read_bytes() != (out / "b/part.obj").read_bytes()
     csv_lines = (out / "summary.csv").read_text().splitlines()

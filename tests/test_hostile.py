@@ -214,13 +214,21 @@ REFUSED = [
     ("huge_element.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 999999999999\nproperty float x\n"
      b"property float y\nproperty float z\nend_header\n\x00\x00\x80\x3f", "cannot read"),
     ("nan_coordinate.off", off_text().replace("1.0 0.0", "nan 0.0", 1), "NaN"),
-    ("duplicated_face.obj", obj_text() + "f 1 2 6\n", "non-manifold"),
 ]
 
 
 @pytest.mark.parametrize("name,data,expect", REFUSED, ids=[r[0] for r in REFUSED])
 def test_bad_files_refused_in_one_line(tmp_path, capsys, name, data, expect):
     assert_refused(*run(tmp_path, capsys, name, data), expect)
+
+
+def test_non_manifold_file_becomes_an_atlas(tmp_path, capsys):
+    """A face added on an interior edge (three faces on it) was refused as non-manifold; the repair splits it
+    (lossless) and the mesh flattens as an atlas: exit 0, finite UVs, v and faces as read."""
+    code, err, out = run(tmp_path, capsys, "duplicated_face.obj", obj_text() + "f 1 2 6\n")
+    assert code == 0 and "Traceback" not in err, err
+    V, F, UV, FUV = formats.load_uv_obj(out)
+    assert np.isfinite(UV).all() and len(F) == obj_text().count("\nf ") + 1
 
 
 @pytest.mark.parametrize("name", ["junk.obj", "junk.stl", "junk.off"])

@@ -33,7 +33,6 @@ given as files or globs go to the top of OUTDIR, or below the glob's fixed folde
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import csv
 import ctypes
@@ -214,8 +213,7 @@ def up_to_date(item: Item, out_dir: Path, opt_hash: str, formats: tuple[str, ...
 
 
 def _charts(report: dict) -> int:
-    c = report.get("charts", 1)
-    return len(c) if isinstance(c, list | tuple) else int(c)
+    return int(report.get("metrics", {}).get("charts", 1))  # an atlas reports its charts; one piece otherwise
 
 
 def _previous_refusals(out_dir: Path) -> dict:
@@ -665,45 +663,3 @@ def _gallery(out: Path, summary: dict) -> str:
 
 
 # ------------------------------------------------------------------------------------------------------- CLI
-
-def _positive_float(value: str) -> float:
-    try:
-        x = float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {value!r}") from None
-    if not x > 0:
-        raise argparse.ArgumentTypeError(f"must be positive, got {value}")
-    return x
-
-
-def _positive_int(value: str) -> int:
-    try:
-        x = int(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {value!r}") from None
-    if x < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return x
-
-
-def add_batch_arguments(p: argparse.ArgumentParser) -> None:
-    """The arguments of ``heatparam batch`` other than the pipeline options (``cli.add_unwrap_options``)."""
-    p.add_argument("inputs", nargs="+", metavar="INPUT", help="mesh files, folders (searched recursively for "
-                   f"{' '.join(MESH_SUFFIXES)}) or globs")
-    p.add_argument("-o", "--output-dir", required=True, metavar="OUTDIR",
-                   help="output folder: OUTDIR/<relative path>/<stem>.obj and .json, summary.csv, summary.json, "
-                        "index.html")
-    p.add_argument("--format", default="obj", metavar="FMT[,FMT...]",
-                   help=f"output formats, of {', '.join(FORMATS)} (the json report is always written; default: "
-                        "%(default)s)")
-    p.add_argument("--workers", type=_positive_int, metavar="N",
-                   help="worker processes of the local Dask cluster (default: one per core)")
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="run on this Dask scheduler (tcp://host:8786, or a scheduler JSON file) instead of a local "
-                        "cluster")
-    p.add_argument("--force", action="store_true", help="redo inputs whose outputs are up to date")
-    p.add_argument("--task-timeout", type=_positive_float, metavar="S",
-                   help="seconds one mesh may take; past it the mesh is recorded as failed (default: no limit)")
-    p.add_argument("--task-memory", metavar="SIZE",
-                   help="memory one mesh's process may hold, e.g. 4GB (default: the Dask worker's memory limit)")
-    p.add_argument("--preview", action="store_true", help="also write <stem>.png previews (shown in index.html)")

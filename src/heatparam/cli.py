@@ -48,14 +48,45 @@ def _parse_value(opt: Option):
     return parse
 
 
-def _positive(text: str) -> float:
+def _positive(text: str, integer: bool = False) -> float:
+    """argparse ``type``: a positive finite number (``integer``: a whole number of at least 1)."""
+    what = "a whole number of at least 1" if integer else "a positive finite number"
     try:
-        value = float(text)
+        value = int(text) if integer else float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
-    if not (value > 0 and value < float("inf")):
-        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+    if not (value >= 1 if integer else 0 < value < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
     return value
+
+
+def _positive_int(text: str) -> int:
+    return int(_positive(text, integer=True))
+
+
+def _add_batch_arguments(p: argparse.ArgumentParser) -> None:
+    """The arguments of ``heatparam batch`` other than the pipeline options (the option table's)."""
+    from heatparam.batching import FORMATS, MESH_SUFFIXES
+
+    p.add_argument("inputs", nargs="+", metavar="INPUT", help="mesh files, folders (searched recursively for "
+                   f"{' '.join(MESH_SUFFIXES)}) or globs")
+    p.add_argument("-o", "--output-dir", required=True, metavar="OUTDIR",
+                   help="output folder: OUTDIR/<relative path>/<stem>.obj and .json, summary.csv, summary.json, "
+                        "index.html")
+    p.add_argument("--format", default="obj", metavar="FMT[,FMT...]",
+                   help=f"output formats, of {', '.join(FORMATS)} (the json report is always written; default: "
+                        "%(default)s)")
+    p.add_argument("--workers", type=_positive_int, metavar="N",
+                   help="worker processes of the local Dask cluster (default: one per core)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run on this Dask scheduler (tcp://host:8786, or a scheduler JSON file) instead of a local "
+                        "cluster")
+    p.add_argument("--force", action="store_true", help="redo inputs whose outputs are up to date")
+    p.add_argument("--task-timeout", type=_positive, metavar="S",
+                   help="seconds one mesh may take; past it the mesh is recorded as failed (default: no limit)")
+    p.add_argument("--task-memory", metavar="SIZE",
+                   help="memory one mesh's process may hold, e.g. 4GB (default: the Dask worker's memory limit)")
+    p.add_argument("--preview", action="store_true", help="also write <stem>.png previews (shown in index.html)")
 
 
 def _add_option(p: argparse.ArgumentParser, opt: Option) -> None:
@@ -114,9 +145,7 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Run the unwrap pipeline on every mesh found, one task per mesh, on a local Dask "
                                    "cluster (default) or the scheduler at --scheduler; resumable; writes "
                                    "OUTDIR/summary.csv, summary.json and index.html.")
-    from heatparam.batching import add_batch_arguments
-
-    add_batch_arguments(b)
+    _add_batch_arguments(b)
     for opt in cli_options():
         _add_option(b, opt)
     b.add_argument("--quiet", action="store_true", help="no progress output")

@@ -40,6 +40,10 @@ __all__ = [
     "layout_error",
     "layout_rmse",
     "noisy_scan_part",
+    "closed_cube",
+    "capped_cylinder",
+    "cone_with_base",
+    "torus",
     "circle",
     "polygon",
     "lift_sphere",
@@ -614,3 +618,98 @@ def noisy_scan_part(scale: float = 100.0, noise: float = 0.1, h: float = 0.03, s
     edge = float(np.mean(np.linalg.norm(V[F[:, 1]] - V[F[:, 0]], axis=1)))
     V = V + noise * edge * np.random.default_rng(seed).standard_normal(V.shape)
     return Shape(V, F, uv, "noisy_scan_part")
+
+
+# closed shapes for atlases (issue 14): (V, F) with outward-facing triangles, one welded closed surface; each
+# unfolds to a few charts at exact isometry (the cube to a net, the cylinder and the cone to their sides and caps)
+def _weld(parts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """Concatenate (P, T) pieces, weld coincident points (rounded to 1e-9 of the extent), drop collapsed faces."""
+    P = np.concatenate([p for p, _ in parts])
+    offs = np.cumsum([0] + [len(p) for p, _ in parts[:-1]])
+    T = np.concatenate([t + o for (_, t), o in zip(parts, offs, strict=True)])
+    ext = float(np.ptp(P, axis=0).max())
+    key = np.round(P / (ext * 1e-9)).astype(np.int64)
+    _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    V = P[first]
+    F = inv.ravel()[T]
+    ok = (F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 2] != F[:, 0])
+    return V.astype(np.float64), F[ok].astype(np.int64)
+
+
+def _grid_faces(nu: int, nv: int) -> np.ndarray:
+    """Triangles of a (nu+1)×(nv+1) point grid (index i*(nv+1)+j), counter-clockwise in (i, j)."""
+    i, j = np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij")
+    a = (i * (nv + 1) + j).ravel()
+    b, c, d = a + nv + 1, a + nv + 2, a + 1
+    return np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+
+
+def closed_cube(side: float = 1.0, n: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """A cube, each face an n×n grid of squares split in two: exactly developable away from its 8 corners
+    (each corner has angle defect π/2), so it unfolds to one net at isometry."""
+    s = np.linspace(0.0, side, n + 1)
+    U, W = np.meshgrid(s, s, indexing="ij")
+    u, w = U.ravel(), W.ravel()
+    parts = []
+    for axis in range(3):
+        for hi in (0.0, side):
+            P = np.zeros((len(u), 3))
+            a1, a2 = (axis + 1) % 3, (axis + 2) % 3
+            P[:, axis] = hi
+            P[:, a1], P[:, a2] = u, w
+            T = _grid_faces(n, n)
+            if hi == 0.0:  # outward normal -axis: reverse
+                T = T[:, ::-1]
+            parts.append((P, T))
+    return _weld(parts)
+
+
+def _revolve(profile: np.ndarray, n_theta: int) -> tuple[np.ndarray, np.ndarray]:
+    """Surface of revolution about z of a (k,2) profile (radius, z), outward when the profile runs with the
+    surface on its left as seen from outside (radius decreasing upwards for a cone's side)."""
+    th = np.linspace(0.0, 2 * np.pi, n_theta, endpoint=False)
+    P = np.array([[r * np.cos(t), r * np.sin(t), z] for t in th for r, z in profile])
+    k = len(profile)
+    T = []
+    for i in range(n_theta):
+        i2 = (i + 1) % n_theta
+        for j in range(k - 1):
+            a, b, c, d = i * k + j, i2 * k + j, i2 * k + j + 1, i * k + j + 1
+            T += [(a, b, c), (a, c, d)]
+    return P, np.array(T, dtype=np.int64)
+
+
+def _disk_profile(radius: float, z: float, rings: int, up: bool) -> np.ndarray:
+    r = np.linspace(radius, 0.0, rings + 1)
+    prof = np.column_stack([r, np.full_like(r, z)])
+    return prof if up else prof[::-1]
+
+
+def capped_cylinder(radius: float = 0.5, height: float = 1.5, n_theta: int = 48, n_z: int = 18,
+                    rings: int = 6) -> tuple[np.ndarray, np.ndarray]:
+    """A closed prism-like cylinder (side: ``n_theta`` planar strips) with flat caps: developable pieces
+    (side unrolls to a rectangle, caps are flat) meeting at two sharp circles."""
+    z = np.linspace(0.0, height, n_z + 1)
+    side = _revolve(np.column_stack([np.full_like(z, radius), z]), n_theta)
+    top = _revolve(_disk_profile(radius, height, rings, up=True), n_theta)
+    bottom = _revolve(_disk_profile(radius, 0.0, rings, up=False), n_theta)
+    return _weld([side, top, bottom])
+
+
+def cone_with_base(radius: float = 0.6, height: float = 1.2, n_theta: int = 48, n_s: int = 18,
+                   rings: int = 6) -> tuple[np.ndarray, np.ndarray]:
+    """A closed pyramid-like cone (side: ``n_theta`` planar triangles fanned to the apex) on a flat disk: the side
+    unrolls to a sector once cut from the apex to the base, the base is flat."""
+    t = np.linspace(0.0, 1.0, n_s + 1)
+    side = _revolve(np.column_stack([radius * (1 - t), height * t]), n_theta)
+    bottom = _revolve(_disk_profile(radius, 0.0, rings, up=False), n_theta)
+    return _weld([side, bottom])
+
+
+def torus(major: float = 1.0, minor: float = 0.35, n_major: int = 48, n_minor: int = 20
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """A closed torus of revolution (genus 1, not developable)."""
+    a = np.linspace(0.0, 2 * np.pi, n_minor, endpoint=False)
+    prof = np.column_stack([major + minor * np.cos(a), minor * np.sin(a)])
+    prof = np.vstack([prof, prof[:1]])  # close the profile; the weld joins the seam
+    return _weld([_revolve(prof, n_major)])

@@ -9,5 +9,10 @@ class MeshError(HeatparamError):
     """The mesh cannot be parameterized as given (format, geometry or topology)."""
 
 
+class TopologyError(MeshError):
+    """The mesh is valid but not a single disk (closed, handles, nearly closed, several components, non-manifold or
+    inconsistently oriented): ``heatparam.parameterize`` makes an atlas of it (``heatparam.atlas``) instead."""
+
+
 class ResourceError(HeatparamError):
     """The request would not fit in the available memory."""

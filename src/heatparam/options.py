@@ -20,6 +20,7 @@ GEODESIC_MODES = ("auto", "all-pairs", "landmarks")
 STRESS_MODES = ("none", "smacof")
 MDS_START_MODES = ("auto", "always")
 SEAM_MODES = ("auto", "holes", "none")
+PACK_MODES = ("scale", "texture")
 REFINE_MODES = ("none", "sd")
 MASS_KINDS = ("lumped", "consistent")
 TIME_STEPS = ("default", "paper")
@@ -67,6 +68,7 @@ class Option(NamedTuple):
     high: float | None = None
     flag: str | None = None
     metavar: str | None = None
+    positive: bool = False  # a number that must be > low (not >=)
 
 
 OPTIONS: tuple[Option, ...] = (
@@ -87,7 +89,7 @@ OPTIONS: tuple[Option, ...] = (
            "Eq. 7 (longest edge; not scale-invariant); or a positive number", TIME_STEPS, flag="--time-step",
            metavar="{default,paper}|T"),
     Option("t_coef", 1.0, "float", "the c in t = c·h² for time_step default", low=0.0, high=T_COEF_MAX,
-           flag="--t-coef", metavar="C"),
+           flag="--t-coef", metavar="C", positive=True),
     Option("mass", "lumped", "choice", "mass matrix B: lumped (default: the consistent one of Eq. 6 gives heat "
            "kernels that oscillate for short times) or consistent (Eq. 6)", MASS_KINDS),
     Option("solver", "auto", "choice", "sparse factorization backend; auto = MKL PARDISO (pypardiso, x86-64) for "
@@ -122,7 +124,21 @@ OPTIONS: tuple[Option, ...] = (
            flag="--refine-multilevel", metavar="N"),
     Option("refine_iters", 200, "int", "iteration cap of the symmetric Dirichlet polish", low=0, high=100_000),
     Option("refine_tol", 1e-6, "float", "the polish stops when an iteration lowers the energy by less than this "
-           "fraction", low=0.0, high=1.0),
+           "fraction", low=0.0, high=1.0, positive=True),
+    Option("max_distortion", 0.0, "float", "atlas (any mesh that is not a single disk: closed, handles, several "
+           "parts, non-manifold scans; docs/atlas.md): the bound on each chart's mean isometric distortion; 0 = "
+           "automatic: atlases are segmented to 1.05 and a disk that flattens bijectively stays one piece; a number "
+           "> 1 also segments a disk whose map exceeds it", low=0.0, high=100.0, flag="--max-distortion",
+           metavar="X"),
+    Option("max_charts", 0, "int", "atlas: a cap on the charts of each part (merging goes on past the bound while "
+           "the merged charts stay bijective); 0 = no cap", low=0, high=10**6, flag="--max-charts", metavar="N"),
+    Option("pack", "scale", "choice", "atlas: scale = charts at true scale in model units, laid side by side without "
+           "overlap (patterns); texture = UVs in [0,1]², one common scale, a gutter of --padding pixels at "
+           "--resolution (texture maps)", PACK_MODES, flag="--pack"),
+    Option("padding", 4.0, "float", "atlas, pack texture: gutter between charts in pixels", low=0.0, high=1e4,
+           flag="--padding", metavar="PX"),
+    Option("resolution", 1024, "int", "atlas, pack texture: the texture's size in pixels (for --padding)", low=16,
+           high=2**20, flag="--resolution", metavar="PX"),
     Option("progress", False, "bool", "show stage messages and progress bars on stderr (the CLI: unless --quiet)"),
 )
 
@@ -154,7 +170,7 @@ def check_value(opt: Option, value: Any) -> Any:
                                      f"got {value!r}")
             return value
         return _number(opt, value, float, positive=True)
-    return _number(opt, value, int if opt.kind == "int" else float, positive=opt.kind == "float" and opt.low == 0.0)
+    return _number(opt, value, int if opt.kind == "int" else float, positive=opt.positive)
 
 
 def _number(opt: Option, value: Any, kind: type, positive: bool) -> Any:
@@ -179,6 +195,9 @@ def _validate(self) -> None:
         setattr(self, opt.name, check_value(opt, getattr(self, opt.name)))
     if self.landmarks in (1, 2):
         raise HeatparamError(f"landmarks must be 0 (automatic) or at least 3; got {self.landmarks}")
+    if 0 < self.max_distortion <= 1:
+        raise HeatparamError(f"max_distortion must be 0 (automatic) or more than 1 (1 = isometry); got "
+                             f"{self.max_distortion}")
 
 
 def _replace(self, **changes) -> Options:

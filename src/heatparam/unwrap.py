@@ -119,7 +119,8 @@ def _writer(fmt: str, V, F, result, ctx: dict):
 
         return lambda tmp: render.save_preview(tmp, V[uv_vertex], Fuv, uv, title=title or "map",
                                                fill_surface=result.fill_surface, units=units,
-                                               metrics=report["metrics"], vertex=uv_vertex) or {"format": "png"}
+                                               metrics=report["metrics"], vertex=uv_vertex,
+                                               chart=chart) or {"format": "png"}
     from heatparam.formats import save_json
 
     return lambda tmp: save_json(tmp, report) or {"format": "json"}

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from heatparam.errors import HeatparamError
+from heatparam.errors import HeatparamError, TopologyError
 from heatparam.memory import require
 from heatparam.options import Options, make_options
 from heatparam.pipeline.heat_stage import FillSurface, decide_fill, mds_map
@@ -70,6 +70,26 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     V = np.ascontiguousarray(V, dtype=np.float64)
     F = np.ascontiguousarray(F, dtype=np.int64)
     prog = Progress(opts.progress)
+    if opts.max_distortion:  # a bound asked for: segmented into charts that meet it (a disk too)
+        return _atlas(V, F, opts, prog, "max_distortion was given")
+    try:
+        return _disk(V, F, opts, prog)
+    except TopologyError as exc:  # closed, handles, several parts, non-manifold: an atlas of disk charts
+        return _atlas(V, F, opts, prog, str(exc).split(" — ")[0])
+
+
+def parameterize_disk(V: np.ndarray, F: np.ndarray, options: Options | None = None, **kwargs) -> Result:
+    """:func:`parameterize` of a single disk (possibly with holes) only: a mesh that is not one (closed, handles,
+    several parts, non-manifold) raises :class:`~heatparam.errors.TopologyError` instead of becoming an atlas. The
+    atlas stage flattens each of its charts with it."""
+    opts = make_options(options, **kwargs)
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    return _disk(V, F, opts, Progress(opts.progress))
+
+
+def _disk(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress) -> Result:
+    """The stages of one disk (the module docstring's flow)."""
     with prog.stage("validate"):
         surface, comp, info = Surface.validated(V, F)
     _check_memory(len(V), len(F), opts)
@@ -91,6 +111,15 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     for w in report["warnings"]:
         prog.warn(w)
     return Result(uv, report, sr.flat.fill_surface, Fuv, uv_vertex)
+
+
+def _atlas(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress, why: str) -> Result:
+    """The atlas stage (``heatparam.atlas``): repair, segment into disk charts, flatten each with these stages,
+    pack; the map as a :class:`Result` with ``chart`` set."""
+    from heatparam.atlas import atlas_result
+
+    with prog.stage("atlas"):
+        return atlas_result(V, F, opts, why, prog)
 
 
 def _to_model(flat: Flat, frame) -> Flat:
@@ -147,4 +176,4 @@ def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = Fals
     return Flat(uv, summary, method, m.layout, m.fill_surface, m.warnings)
 
 
-__all__ = ["FillSurface", "Options", "Result", "flatten", "parameterize"]
+__all__ = ["FillSurface", "Options", "Result", "flatten", "parameterize", "parameterize_disk"]

@@ -59,12 +59,14 @@ class Result(tuple):
     Fuv : (m,3) int64, the rows of ``uv`` at each face's corners (F itself without seams): OBJ's ``f v/vt``.
     uv_vertex : (n_uv,) int64, the input vertex of each row of ``uv`` (``arange(n)`` without seams).
     fill_surface : a :class:`FillSurface` when a fill was used (for pictures), else None.
+    chart : (m,) int64 chart of each face for an atlas (``report["method"]["atlas"]``), else None (one piece).
     """
 
     def __new__(cls, uv: np.ndarray, report: dict, fill_surface: FillSurface | None = None,
-                Fuv: np.ndarray | None = None, uv_vertex: np.ndarray | None = None):
+                Fuv: np.ndarray | None = None, uv_vertex: np.ndarray | None = None, chart: np.ndarray | None = None):
         self = super().__new__(cls, (uv, report))
         self.fill_surface = fill_surface
+        self.chart = chart
         self.Fuv = Fuv
         self.uv_vertex = uv_vertex if uv_vertex is not None else np.arange(len(uv), dtype=np.int64)
         return self
@@ -79,8 +81,8 @@ class Result(tuple):
 
     @property
     def seamed(self) -> bool:
-        """Whether the map has seams (``uv`` rows are not the input's vertices)."""
-        return bool(self.report["method"]["seams"]["used"])
+        """Whether the map has seams or charts (``uv`` rows are not the input's vertices)."""
+        return self.chart is not None or bool(self.report["method"]["seams"]["used"])
 
 
 def build_report(opts, flat: Flat, seams: dict, without_seams: dict | None, mesh_facts: dict, prog: Progress,

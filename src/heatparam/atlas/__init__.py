@@ -1,0 +1,327 @@
+"""Atlases of any mesh: repair, segmentation into disk charts, each chart flattened by the pipeline, packing.
+
+``atlas(V, F)`` accepts what :func:`heatparam.parameterize` refuses (closed surfaces, handles, nearly closed
+scans, several components, non-manifold vertices and edges) and returns one UV row per chart corner: the input's
+vertices and faces are unchanged, row for row; face f's corners map to ``uv[Fuv[f]]``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from heatparam.atlas.overlap import count_overlaps, uv_degenerate_faces
+from heatparam.atlas.pack import pack_charts
+from heatparam.atlas.repair import repair
+from heatparam.atlas.segment import Topology, chart_mesh, grow, quick_flatten, segment
+from heatparam.errors import HeatparamError
+
+__all__ = ["ATLAS_FIELDS", "AtlasResult", "DEFAULT_MAX_DISTORTION", "TINY_COMPONENT_FACES", "atlas", "atlas_result"]
+
+#: isometric distortion bound per chart (area-weighted mean of max(s1, 1/s2)); measured in BENCHMARKS.md
+DEFAULT_MAX_DISTORTION = 1.05
+#: components with fewer faces are reported as tiny (they still get charts)
+TINY_COMPONENT_FACES = 20
+
+
+@dataclass
+class AtlasResult:
+    """uv (k,2) float64; Fuv (m,3) int64 rows of uv per face corner (F row for row); uv_vertex (k,) int64 input
+    vertex of each uv row; chart (m,) int64 chart of each face; report dict (per chart and totals)."""
+
+    uv: np.ndarray
+    Fuv: np.ndarray
+    uv_vertex: np.ndarray
+    chart: np.ndarray
+    report: dict = field(default_factory=dict)
+
+
+def _flatten_chart(Vl, Fl, opts) -> tuple[np.ndarray | None, dict]:
+    """The pipeline's map of one disk chart, or (None, reason) when it fails."""
+    from heatparam.pipeline import parameterize_disk as parameterize
+
+    if len(Fl) < 2:
+        uv, iso, bij = quick_flatten(Vl, Fl)
+        return uv, {"iso_mean": iso, "flips": 0 if bij else 1, "bijective": bij, "boundary_crossings": 0,
+                    "method": "exact triangle"}
+    try:
+        res = parameterize(Vl, Fl, **opts)
+    except HeatparamError as exc:
+        return None, {"error": str(exc)}
+    met = res.report["metrics"]
+    uv = res.uv
+    if res.Fuv is not None and not np.array_equal(res.Fuv, Fl):
+        return None, {"error": "the pipeline cut the chart"}
+    return uv, {"iso_mean": float(met["iso_mean"]), "flips": int(met["flips"]),
+                "boundary_crossings": int(met.get("boundary_crossings", 0)), "bijective": bool(met["bijective"]),
+                "method": "pipeline"}
+
+
+def _chart_ok(info: dict, bound: float | None) -> bool:
+    if "error" in info or not info["bijective"] or info["flips"]:
+        return False
+    return bound is None or info["iso_mean"] <= bound
+
+
+def atlas(V: np.ndarray, F: np.ndarray, *, max_distortion: float | None = None, max_charts: int | None = None,
+          pack: str = "scale", padding: float = 4.0, resolution: int = 1024, seed: int = 0,
+          **pipeline_options) -> AtlasResult:
+    """A bijective, near-isometric atlas of any triangle mesh.
+
+    Parameters
+    ----------
+    V : (n,3) float64. F : (m,3) int64.
+    max_distortion : per-chart bound on the isometric distortion (area-weighted mean of max(s1, 1/s2)).
+        None (default): charts are segmented and merged to ``DEFAULT_MAX_DISTORTION`` (1.05), and an open part
+        that ``parameterize`` accepts (a disk, possibly with holes, not nearly closed) stays one piece when its
+        map is bijective, whatever its distortion. A number: every part is segmented to that bound.
+    max_charts : a cap on the charts of each component: when the bound leaves more, merging goes on past the
+        bound (each merged chart still bijective) down to this count where bijective merges exist; a warning
+        says when the atlas still has more.
+    pack : ``scale`` (true scale, model units) or ``texture`` (UVs in [0,1]², one common scale).
+    padding, resolution : gutter in pixels of a ``resolution``² texture (``texture``).
+    seed : seeds the farthest-point seeds and the pipeline.
+    pipeline_options : passed to :func:`heatparam.parameterize` for every chart.
+
+    Returns
+    -------
+    :class:`AtlasResult`.
+    """
+    t0 = time.perf_counter()
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    if pack not in ("scale", "texture"):
+        raise HeatparamError(f"pack must be 'scale' or 'texture', got {pack!r}")
+    if max_distortion is not None and not max_distortion > 1.0:
+        raise HeatparamError(f"max distortion must be > 1 (1 = isometry), got {max_distortion}")
+    bound = DEFAULT_MAX_DISTORTION if max_distortion is None else float(max_distortion)
+    opts = {"seed": seed, **pipeline_options}
+    rep = repair(V, F)
+    charts: list[dict] = []  # each: faces (input rows), Fl, vert (input vertex per local row), uv, info
+    comp_reports = []
+    for ci, comp in enumerate(rep.components):
+        topo = Topology.build(comp.V, comp.F)
+        whole = None
+        if max_distortion is None:
+            from heatparam.mesh import validate_mesh
+
+            try:
+                validate_mesh(comp.V, comp.F, flatten=True)
+                whole = True
+            except HeatparamError:
+                whole = False
+        done = False
+        if whole:
+            from heatparam.pipeline import parameterize_disk as parameterize
+
+            try:
+                res = parameterize(comp.V, comp.F, **opts)
+                met = res.report["metrics"]
+                if met["bijective"] and not met["flips"]:
+                    Fuv = res.Fuv if res.Fuv is not None else comp.F
+                    charts.append({"faces": comp.faces, "Fl": np.asarray(Fuv, dtype=np.int64),
+                                   "vert": comp.vertex[res.uv_vertex], "uv": res.uv, "component": ci,
+                                   "info": {"iso_mean": float(met["iso_mean"]), "flips": int(met["flips"]),
+                                            "bijective": True, "method": "pipeline (whole part)"}})
+                    done = True
+            except HeatparamError:
+                pass
+        if done:
+            comp_reports.append({"faces": int(len(comp.F)), "charts": 1, "segmented": False})
+            continue
+        seg = segment(topo, bound, max_charts=max_charts, seed=seed)
+        k = int(seg.chart.max()) + 1
+        todo = [(np.flatnonzero(seg.chart == c), seg.glued) for c in range(k)]
+        made = 0
+        while todo:
+            faces, glued = todo.pop()
+            Vl, Fl, vert = chart_mesh(topo, faces, glued)
+            uv, info = _flatten_chart(Vl, Fl, opts)
+            if not _chart_ok(info, None if seg.stats["capped"] else bound) and len(faces) > 1:
+                # the paper's future-work rule: a chart that is not bijective or exceeds the bound is split
+                quick, qiso, qbij = quick_flatten(Vl, Fl)
+                parts = grow(topo, faces, 179.0, max(1, (len(faces) + 1) // 2), seed)  # two halves
+                if len(parts) > 1:
+                    for p in parts:
+                        g = np.zeros_like(glued)
+                        h = (3 * p[:, None] + np.arange(3)).ravel()
+                        inside = np.zeros(len(topo.F), dtype=bool)
+                        inside[p] = True
+                        o = topo.opp[h]
+                        ok = o >= 0
+                        ok[ok] = inside[o[ok] // 3]
+                        g[h[ok]] = True  # a fresh half: welded inside
+                        todo.append((p, g))
+                    continue
+                bijective = uv is not None and info.get("bijective") and not info.get("flips")
+                if qbij and not bijective:
+                    uv, info = quick, {"iso_mean": qiso, "flips": 0, "bijective": True, "method": "lscm"}
+                elif not bijective:  # last resort: one chart per face, each laid out exactly
+                    todo.extend((faces[i:i + 1], np.zeros_like(glued)) for i in range(len(faces)))
+                    continue
+            if uv is None:
+                raise HeatparamError(f"a chart of {len(faces)} faces could not be flattened: {info.get('error')}")
+            charts.append({"faces": comp.faces[faces], "Fl": Fl, "vert": comp.vertex[vert], "uv": uv,
+                           "component": ci, "info": info})
+            made += 1
+        comp_reports.append({"faces": int(len(comp.F)), "charts": made, "segmented": True, **seg.stats})
+    t_flat = time.perf_counter() - t0
+    placed, pinfo = pack_charts([c["uv"] for c in charts], [c["Fl"] for c in charts], pack, padding, resolution)
+    m = len(F)
+    Fuv = np.full((m, 3), -1, dtype=np.int64)
+    chart_of = np.full(m, -1, dtype=np.int64)
+    uvs, verts = [], []
+    off = 0
+    for i, c in enumerate(charts):
+        Fuv[c["faces"]] = c["Fl"] + off
+        chart_of[c["faces"]] = i
+        uvs.append(placed[i])
+        verts.append(c["vert"])
+        off += len(placed[i])
+    uv = np.concatenate(uvs)
+    uv_vertex = np.concatenate(verts).astype(np.int64)
+    report = _report(V, F, uv, Fuv, uv_vertex, chart_of, charts, rep, comp_reports, pinfo, bound, max_distortion,
+                     max_charts)
+    report["seconds"] = {"charts": t_flat, "total": time.perf_counter() - t0}
+    return AtlasResult(uv=uv, Fuv=Fuv, uv_vertex=uv_vertex, chart=chart_of, report=report)
+
+
+def seam_length(V: np.ndarray, F: np.ndarray, Fuv: np.ndarray) -> float:
+    """Length of the interior mesh edges whose two sides have different UV rows (each edge once)."""
+    from heatparam.atlas.repair import half_edge_opposites
+
+    opp = half_edge_opposites(F)
+    h = np.flatnonzero(opp > np.arange(len(opp)))
+    o = opp[h]
+    fa, ja = h // 3, h % 3
+    fb, jb = o // 3, o % 3
+    same = (Fuv[fa, ja] == Fuv[fb, (jb + 1) % 3]) & (Fuv[fa, (ja + 1) % 3] == Fuv[fb, jb])
+    a, b = F[fa, ja], F[fa, (ja + 1) % 3]
+    # edges of 3+ faces (or of inconsistent orientation) are cut by the repair: count them too
+    a_all, b_all = F.ravel(), F[:, [1, 2, 0]].ravel()
+    n = len(V)
+    key = np.minimum(a_all, b_all) * n + np.maximum(a_all, b_all)
+    uk, first, cnt = np.unique(key, return_index=True, return_counts=True)
+    multi = first[(cnt >= 2)]
+    welded_keys = np.minimum(a, b) * n + np.maximum(a, b)
+    multi = multi[~np.isin(key[multi], welded_keys)]
+    L = float(np.linalg.norm(V[b[~same]] - V[a[~same]], axis=1).sum())
+    L += float(np.linalg.norm(V[b_all[multi]] - V[a_all[multi]], axis=1).sum())
+    return L
+
+
+def _report(V, F, uv, Fuv, uv_vertex, chart_of, charts, rep, comp_reports, pinfo, bound, max_distortion,
+            max_charts) -> dict:
+    from heatparam.metrics import distortion
+
+    A3 = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+    per = []
+    for i, c in enumerate(charts):
+        f = c["faces"]
+        per.append({"chart": i, "component": c["component"], "faces": int(len(f)), "area": float(A3[f].sum()),
+                    "iso_mean": float(c["info"].get("iso_mean", float("nan"))), "flips": int(c["info"]["flips"]),
+                    "method": c["info"].get("method"), "seam_length": 0.0})
+    # per chart seam length: its border edges that are not mesh border (computed on the whole atlas)
+    _per_chart_seams(V, F, Fuv, chart_of, per)
+    scale = pinfo["scale"]
+    d = distortion(V, F, uv, Fuv)
+    L = seam_length(V, F, Fuv)
+    area = float(A3.sum())
+    totals = {
+        "charts": len(charts),
+        "seam_length": L,
+        "seam_length_over_sqrt_area": L / np.sqrt(area) if area > 0 else float("nan"),
+        "iso_mean": d["iso_mean"],
+        "iso_p95": d["iso_p95"],
+        "flips": d["flips"],
+        "overlapping_triangle_pairs": count_overlaps(uv, Fuv),
+        "uv_degenerate_faces": int(uv_degenerate_faces(uv, Fuv).sum()),
+        "packing_efficiency": pinfo["efficiency"],
+        "area": area,
+        "uv_scale": scale,
+    }
+    tiny = [i for i, c in enumerate(rep.components) if len(c.F) < TINY_COMPONENT_FACES]
+    return {
+        "parameters": {"max_distortion": max_distortion, "bound_used": bound, "max_charts": max_charts,
+                       "pack": pinfo["mode"]},
+        "repair": rep.report(),
+        "tiny_components": [{"component": i, "faces": int(len(rep.components[i].F))} for i in tiny],
+        "components": comp_reports,
+        "charts": per,
+        "totals": totals,
+        "pack": pinfo,
+        "warnings": ([f"{len(charts)} charts exceed --max-charts {max_charts}"]
+                     if max_charts is not None and len(charts) > max_charts else [])
+        + ([f"{len(rep.loose_points)} unreferenced vertices kept without UV"] if len(rep.loose_points) else []),
+    }
+
+
+def _per_chart_seams(V, F, Fuv, chart_of, per) -> None:
+    from heatparam.atlas.repair import half_edge_opposites
+
+    opp = half_edge_opposites(F)
+    h = np.arange(3 * len(F))
+    o = opp
+    fa, ja = h // 3, h % 3
+    a, b = F[fa, ja], F[fa, (ja + 1) % 3]
+    seam = np.zeros(len(h), dtype=bool)
+    ok = o >= 0
+    fb, jb = o[ok] // 3, o[ok] % 3
+    seam[ok] = ~((Fuv[fa[ok], ja[ok]] == Fuv[fb, (jb + 1) % 3]) & (Fuv[fa[ok], (ja[ok] + 1) % 3] == Fuv[fb, jb]))
+    L = np.linalg.norm(V[b] - V[a], axis=1) * seam
+    s = np.bincount(chart_of[fa], weights=L, minlength=len(per))
+    for i, p in enumerate(per):
+        p["seam_length"] = float(s[i])
+
+
+#: the Options fields that are the atlas's own (not passed to the per-chart pipeline)
+ATLAS_FIELDS = ("max_distortion", "max_charts", "pack", "padding", "resolution", "progress")
+
+
+def atlas_result(V: np.ndarray, F: np.ndarray, opts, why: str, prog=None):
+    """:func:`atlas` of (V, F) with the ``Options`` ``opts`` (their atlas fields and the pipeline's for each chart),
+    as a ``pipeline.Result``: ``uv``, ``Fuv``, ``uv_vertex``, ``chart`` and a report with the same top-level keys as
+    a single flattening's (``metrics`` over the whole atlas, ``method.atlas`` per chart and totals)."""
+    import platform
+    from dataclasses import asdict
+
+    from heatparam import __version__, metrics
+    from heatparam.memory import peak_rss_bytes
+    from heatparam.pipeline.report import Result
+
+    o = asdict(opts)
+    pipeline_options = {k: v for k, v in o.items() if k not in ATLAS_FIELDS and k != "seed"}
+    res = atlas(V, F, max_distortion=opts.max_distortion or None, max_charts=opts.max_charts or None,
+                pack=opts.pack, padding=opts.padding, resolution=opts.resolution, seed=opts.seed,
+                **pipeline_options)
+    summary = metrics.summary(V, F, res.uv, res.Fuv)
+    summary["stress_rel_rms"] = None
+    t = res.report["totals"]
+    summary.update(charts=t["charts"], overlapping_triangle_pairs=t["overlapping_triangle_pairs"],
+                   uv_degenerate_faces=t["uv_degenerate_faces"], seam_length=t["seam_length"])
+    warnings = [f"an atlas of {t['charts']} chart(s) ({why}); the OBJ's vt rows split along the seams",
+                *res.report.get("warnings", [])]
+    if summary["flips"] or summary["boundary_crossings"]:
+        warnings.append(f"the map is not bijective: {summary['flips']} flipped triangles, "
+                        f"{summary['boundary_crossings']} boundary crossings")
+    referenced = np.zeros(len(V), dtype=bool)
+    referenced[F.ravel()] = True
+    report = {
+        "heatparam_version": __version__,
+        "parameters": o,
+        "method": {"atlas": res.report, "why": why, "seams": {"mode": opts.seams, "used": True,
+                                                              "reason": "charts of an atlas"}},
+        "mesh": {"vertices": len(V), "faces": len(F), "unreferenced_vertices": int((~referenced).sum()),
+                 "components": len(res.report["components"]), "repair": res.report["repair"]},
+        "metrics": summary,
+        "timings_s": {"atlas": round(float(res.report["seconds"]["total"]), 4)},
+        "peak_rss_mb": round(peak_rss_bytes() / 2**20, 1),
+        "machine": {"python": platform.python_version(), "platform": platform.platform()},
+        "warnings": warnings,
+    }
+    if prog is not None:
+        for w in warnings:
+            prog.warn(w)
+    return Result(res.uv, report, None, res.Fuv, res.uv_vertex, res.chart)

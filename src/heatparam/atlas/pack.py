@@ -1,0 +1,123 @@
+"""Packing charts without overlap: each chart turned to its minimum-area bounding rectangle, then shelf packing.
+
+``scale``: true scale (model units), charts kept at their size, a gap of ``gap`` model units between boxes.
+``texture``: every chart scaled by one common factor, as large as fits in [0,1]² with a gutter of
+``padding / resolution`` between boxes (``padding`` pixels of a ``resolution``² texture) and half of it at the
+border.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+__all__ = ["min_area_rotation", "pack_charts"]
+
+
+def min_area_rotation(P: np.ndarray) -> np.ndarray:
+    """(2,2) rotation that puts the points' minimum-area bounding rectangle axis-aligned (rotating calipers)."""
+    try:
+        H = P[ConvexHull(P).vertices]
+    except (QhullError, ValueError):
+        return np.eye(2)
+    E = np.roll(H, -1, axis=0) - H
+    ang = np.arctan2(E[:, 1], E[:, 0])
+    best, R_best = np.inf, np.eye(2)
+    for t in np.unique(np.mod(ang, np.pi / 2)):
+        c, s = np.cos(t), np.sin(t)
+        R = np.array([[c, s], [-s, c]])
+        Q = H @ R.T
+        ext = Q.max(axis=0) - Q.min(axis=0)
+        area = ext[0] * ext[1]
+        if area < best - 1e-12 * abs(best if np.isfinite(best) else 1):
+            best, R_best = area, R if ext[0] >= ext[1] else np.array([[0, 1], [-1, 0]]) @ R
+    return R_best
+
+
+def _shelf(sizes: np.ndarray, width: float, gap: float) -> tuple[np.ndarray, float, float]:
+    """Lower-left corners of boxes (w,h) on shelves of the given width, tallest first: (k,2), used w, used h."""
+    order = np.lexsort((-sizes[:, 0], -sizes[:, 1]))
+    pos = np.zeros((len(sizes), 2))
+    x = y = shelf_h = 0.0
+    used_w = 0.0
+    for i in order:
+        w, h = sizes[i]
+        if x > 0 and x + w > width:
+            y += shelf_h + gap
+            x = shelf_h = 0.0
+        pos[i] = (x, y)
+        x += w + gap
+        used_w = max(used_w, x - gap)
+        shelf_h = max(shelf_h, h)
+    return pos, used_w, y + shelf_h
+
+
+def pack_charts(uvs: list[np.ndarray], Fs: list[np.ndarray], mode: str = "scale", padding: float = 4.0,
+                resolution: int = 1024, gap: float | None = None) -> tuple[list[np.ndarray], dict]:
+    """Place charts without overlap.
+
+    Parameters
+    ----------
+    uvs : list of (n_i,2) float64 chart layouts (each bijective on its own). Fs : list of (m_i,3) int64 their
+        triangles (for the packing efficiency).
+    mode : ``scale`` or ``texture`` (module docstring).
+    padding, resolution : the texture gutter in pixels and the texture size (``texture``).
+    gap : ``scale`` mode gap in model units (default: 2% of the square root of the mean chart box area).
+
+    Returns
+    -------
+    (placed layouts, info dict with ``scale`` (texture scale factor; 1 in scale mode), ``width``, ``height``,
+    ``efficiency`` = summed chart UV area / area of the atlas rectangle ([0,1]² in texture mode)).
+    """
+    rot = []
+    sizes = np.zeros((len(uvs), 2))
+    areas = np.zeros(len(uvs))
+    for i, P in enumerate(uvs):
+        R = min_area_rotation(P)
+        Q = P @ R.T
+        Q = Q - Q.min(axis=0)
+        rot.append(Q)
+        sizes[i] = Q.max(axis=0)
+        T = Q[Fs[i]]
+        e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
+        areas[i] = 0.5 * float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum())
+    if mode == "scale":
+        g = gap if gap is not None else 0.02 * float(np.sqrt(np.mean(sizes[:, 0] * sizes[:, 1])) + 1e-300)
+        total = float((sizes + g).prod(axis=1).sum())
+        best = None
+        for f in (0.8, 0.9, 1.0, 1.1, 1.25, 1.4, 1.6, 2.0):  # shelf widths: keep the smallest rectangle
+            width = max(float(np.sqrt(total) * f), float(sizes[:, 0].max()))
+            cand = _shelf(sizes, width, g)
+            if best is None or cand[1] * cand[2] < best[1] * best[2]:
+                best = cand
+        pos, w, h = best
+        out = [Q + pos[i] for i, Q in enumerate(rot)]
+        return out, {"mode": mode, "scale": 1.0, "width": w, "height": h, "gap": g,
+                     "efficiency": float(areas.sum() / max(w * h, 1e-300))}
+    if mode != "texture":
+        raise ValueError(f"pack must be 'scale' or 'texture', got {mode!r}")
+    g = float(padding) / float(resolution)
+
+    def fits(s: float) -> tuple[bool, np.ndarray]:
+        inner = 1.0 - g
+        if (sizes * s).max() > inner:
+            return False, None
+        pos, w, h = _shelf(sizes * s, inner, g)
+        return h <= inner, pos
+
+    hi = (1.0 - g) / max(float(sizes.max()), 1e-300)
+    lo = 0.0
+    if fits(hi)[0]:
+        lo = hi
+    else:
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            if fits(mid)[0]:
+                lo = mid
+            else:
+                hi = mid
+    ok, pos = fits(lo)
+    out = [Q * lo + pos[i] + 0.5 * g for i, Q in enumerate(rot)]
+    return out, {"mode": mode, "scale": lo, "width": 1.0, "height": 1.0, "gutter": g,
+                 "efficiency": float(areas.sum() * lo * lo)}
+

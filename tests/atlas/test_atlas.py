@@ -1,0 +1,207 @@
+"""Atlases (issue 14): closed developable datasets unfold at isometry, real closed meshes become bijective
+near-isometric atlases, and an independent exact overlap count."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from heatparam import datasets
+from heatparam.atlas import atlas
+from heatparam.atlas.overlap import count_overlaps, overlapping_pairs, uv_degenerate_faces
+from heatparam.errors import MeshError
+from heatparam.metrics import boundary_crossings, distortion
+
+from conftest import shared_mesh
+
+
+# ---------------------------------------------------------------------------------------------------------
+# the exact overlap checker on constructed cases
+# ---------------------------------------------------------------------------------------------------------
+def test_overlap_chart_inside_another_is_found_without_boundary_crossings():
+    uv = np.array([[0, 0], [10, 0], [0, 10], [1, 1], [2, 1], [1, 2]], dtype=float)
+    Fuv = np.array([[0, 1, 2], [3, 4, 5]])
+    assert boundary_crossings(uv, Fuv) == 0  # the boundary check alone misses it
+    assert overlapping_pairs(uv, Fuv).tolist() == [[0, 1]]
+
+
+def test_overlap_touching_edges_and_shared_corners_are_not_overlaps():
+    # two charts touching along a full edge (distinct rows, equal coordinates)
+    uv = np.array([[0, 0], [1, 0], [0, 1], [1, 0], [0, 1], [1, 1]], dtype=float)
+    assert count_overlaps(uv, np.array([[0, 1, 2], [3, 5, 4]])) == 0
+    # adjacent triangles of one chart sharing an edge (same rows)
+    assert count_overlaps(uv[[0, 1, 2, 5]], np.array([[0, 1, 2], [1, 3, 2]])) == 0
+    # triangles sharing only a corner
+    uv2 = np.array([[0, 0], [1, 0], [0, 1], [-1, 0], [0, -1]], dtype=float)
+    assert count_overlaps(uv2, np.array([[0, 1, 2], [0, 3, 4]])) == 0
+    # a corner touching the middle of the other's edge (T-junction)
+    uv3 = np.array([[0, 0], [2, 0], [0, 2], [1, 0], [2, -1], [0, -1]], dtype=float)
+    assert count_overlaps(uv3, np.array([[0, 1, 2], [3, 5, 4]])) == 0
+
+
+def test_overlap_crossing_and_shared_edge_folded_back():
+    uv = np.array([[0, 0], [2, 0], [0, 2], [1, 1.5], [1, -1], [3, 1]], dtype=float)
+    assert count_overlaps(uv, np.array([[0, 1, 2], [3, 4, 5]])) == 1
+    # a fold: two faces of one chart share an edge and lie on the same side of it
+    uv2 = np.array([[0, 0], [1, 0], [0, 1], [0.2, 0.3]], dtype=float)
+    assert count_overlaps(uv2, np.array([[0, 1, 2], [0, 1, 3]])) == 1
+    assert uv_degenerate_faces(np.array([[0, 0], [1, 1], [2, 2.0]]), np.array([[0, 1, 2]])).tolist() == [True]
+
+
+def _side(p, q, x) -> float:
+    return (q[0] - p[0]) * (x[1] - p[1]) - (q[1] - p[1]) * (x[0] - p[0])
+
+
+def _clip_area(A: np.ndarray, B: np.ndarray) -> float:
+    """Intersection area of two counter-clockwise triangles (Sutherland-Hodgman), the brute-force reference."""
+    poly = list(A)
+    for i in range(3):
+        p, q = B[i], B[(i + 1) % 3]
+        out = []
+        for j in range(len(poly)):
+            c, d = poly[j], poly[(j + 1) % len(poly)]
+            sc, sd = _side(p, q, c), _side(p, q, d)
+            if sc >= 0:
+                out.append(c)
+            if sc * sd < 0:
+                out.append(c + (d - c) * (sc / (sc - sd)))
+        poly = out
+        if not poly:
+            return 0.0
+    P = np.array(poly)
+    return 0.5 * abs(np.dot(P[:, 0], np.roll(P[:, 1], -1)) - np.dot(P[:, 1], np.roll(P[:, 0], -1)))
+
+
+def test_overlap_matches_clipping_on_random_triangles():
+    rng = np.random.default_rng(3)
+    T = rng.uniform(0, 4, (60, 3, 2))
+    e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
+    s = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    T[s < 0] = T[s < 0][:, ::-1]
+    uv = T.reshape(-1, 2)
+    Fuv = np.arange(len(uv)).reshape(-1, 3)
+    got = {tuple(p) for p in overlapping_pairs(uv, Fuv).tolist()}
+    want = {(i, j) for i in range(60) for j in range(i + 1, 60) if _clip_area(T[i], T[j]) > 1e-12}
+    assert got == want and len(want) > 20
+
+
+# ---------------------------------------------------------------------------------------------------------
+# atlases
+# ---------------------------------------------------------------------------------------------------------
+def _check_atlas(V, F, res, iso_max: float):
+    """Independent checks of an atlas: lossless corners, every face mapped, no flips, overlaps or collapses."""
+    assert res.Fuv.shape == F.shape and (res.Fuv >= 0).all()
+    np.testing.assert_array_equal(res.uv_vertex[res.Fuv], F)  # the corners' UV rows belong to F's vertices
+    d = distortion(V, F, res.uv, res.Fuv)
+    assert d["flips"] == 0
+    assert count_overlaps(res.uv, res.Fuv) == 0
+    assert not uv_degenerate_faces(res.uv, res.Fuv).any()
+    # true scale in the default packing: UV area matches 3D area up to the distortion
+    assert d["uv_scale"] == pytest.approx(1.0, abs=iso_max - 1.0 + 1e-9)
+    assert d["iso_mean"] <= iso_max
+    return d
+
+
+@pytest.mark.parametrize("make", [datasets.closed_cube, datasets.capped_cylinder, datasets.cone_with_base])
+def test_closed_developable_shapes_unfold_isometrically(make):
+    V, F = make()
+    res = atlas(V, F)
+    _check_atlas(V, F, res, 1.001)
+    assert res.report["totals"]["charts"] <= 3
+
+
+def test_cube_unfolds_to_one_net():
+    V, F = datasets.closed_cube()
+    res = atlas(V, F)
+    assert res.report["totals"]["charts"] == 1
+    assert res.report["totals"]["iso_mean"] <= 1.0 + 1e-9
+
+
+def test_torus_genus_one():
+    V, F = datasets.torus()
+    res = atlas(V, F)
+    _check_atlas(V, F, res, 1.05)
+    assert all(c["iso_mean"] <= 1.05 for c in res.report["charts"])
+
+
+def test_texture_packing_in_unit_square_with_gutter():
+    V, F = datasets.capped_cylinder(n_theta=24, n_z=8, rings=3)
+    res = atlas(V, F, pack="texture", padding=8, resolution=256)
+    assert res.uv.min() >= 0 and res.uv.max() <= 1
+    assert count_overlaps(res.uv, res.Fuv) == 0
+    # boxes of different charts are at least the gutter apart
+    g = 8 / 256
+    corners = [res.uv[res.Fuv[res.chart == c]].reshape(-1, 2) for c in range(res.chart.max() + 1)]
+    boxes = [(P.min(0), P.max(0)) for P in corners]
+    for i in range(len(boxes)):
+        for j in range(i + 1, len(boxes)):
+            sep = np.maximum(boxes[j][0] - boxes[i][1], boxes[i][0] - boxes[j][1]).max()
+            assert sep >= g - 1e-12
+    assert 0 < res.report["totals"]["packing_efficiency"] <= 1
+
+
+def test_open_disk_stays_one_piece_by_default_and_splits_on_request():
+    s = datasets.flat_disk(radius=1.0, h=0.1)
+    V = datasets.lift_sphere(s.V[:, :2], 1.05)  # a nearly hemispherical open cap: no isometric flat map
+    one = atlas(V, s.F)
+    assert one.report["totals"]["charts"] == 1
+    assert one.report["totals"]["iso_mean"] > 1.03
+    bounded = atlas(V, s.F, max_distortion=1.03)
+    assert bounded.report["totals"]["charts"] > 1
+    _check_atlas(V, s.F, bounded, 1.03)
+    assert all(c["iso_mean"] <= 1.03 for c in bounded.report["charts"])
+
+
+def test_bad_input_errors_stay():
+    V, F = datasets.closed_cube(n=2)
+    W = V.copy()
+    W[0, 0] = np.nan
+    with pytest.raises(MeshError):
+        atlas(W, F)
+    with pytest.raises(MeshError):
+        atlas(V, np.vstack([F, [[0, 0, 1]]]))
+    with pytest.raises(MeshError):
+        atlas(V, F + len(V))
+
+
+@pytest.mark.parametrize("name", ["cow.off", pytest.param("3holes.off", marks=pytest.mark.slow),
+                                  pytest.param("stanford-bunny.obj", marks=pytest.mark.slow)])
+def test_shared_closed_meshes_default_atlas(name):
+    from heatparam.formats import load_mesh
+
+    V, F = load_mesh(shared_mesh(name))
+    res = atlas(V, F)
+    _check_atlas(V, F, res, 1.05)
+    assert all(c["flips"] == 0 for c in res.report["charts"])
+
+
+def test_preview_png(tmp_path):
+    from heatparam.atlas.preview import save_atlas_preview, seam_edges
+
+    V, F = datasets.cone_with_base(n_theta=16, n_s=6, rings=2)
+    res = atlas(V, F)
+    assert len(seam_edges(F, res.Fuv)) > 0
+    out = tmp_path / "p.png"
+    save_atlas_preview(out, V, F, res, title="cone")
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_max_charts_caps_the_torus():
+    V, F = datasets.torus(n_major=32, n_minor=12)
+    free = atlas(V, F)
+    capped = atlas(V, F, max_charts=2)
+    assert capped.report["totals"]["charts"] <= 2 < free.report["totals"]["charts"]
+    d = distortion(V, F, capped.uv, capped.Fuv)
+    assert d["flips"] == 0 and count_overlaps(capped.uv, capped.Fuv) == 0
+
+
+def test_deterministic_and_json_report():
+    import json
+
+    V, F = datasets.torus(n_major=24, n_minor=10)
+    a, b = atlas(V, F, seed=1), atlas(V, F, seed=1)
+    np.testing.assert_array_equal(a.uv, b.uv)
+    np.testing.assert_array_equal(a.Fuv, b.Fuv)
+    rep = json.loads(json.dumps(a.report))
+    assert rep["totals"]["charts"] == len(rep["charts"]) == a.chart.max() + 1
+    assert {"faces", "area", "iso_mean", "flips", "seam_length"} <= set(rep["charts"][0])
