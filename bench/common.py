@@ -27,12 +27,13 @@ def machine() -> str:
 
 def load(name: str):
     """A generated shape (``heatparam.datasets`` function name) or a ../shared/meshes file: (V, F, uv_true or None)."""
-    from heatparam import datasets, io
+    from heatparam import datasets
+    from heatparam.formats import load_mesh
 
     if hasattr(datasets, name):
         s = getattr(datasets, name)()
         return s.V, s.F, s.uv_true
-    V, F = io.load_mesh(SHARED / name)
+    V, F = load_mesh(SHARED / name)
     return V, F, None
 
 

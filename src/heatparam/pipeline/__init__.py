@@ -149,19 +149,21 @@ def _check_memory(n: int, m: int, opts: Options) -> None:
                 "use refine='none' (the raw MDS map) or decimate the mesh")
 
 
-def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = False) -> Flat:
-    """The stages on one surface (``seamed``: cut open by the seams stage, whose seams a fill would close again)."""
+def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = False,
+            starts: dict[str, np.ndarray] | None = None) -> Flat:
+    """The stages on one surface (``seamed``: cut open by the seams stage, whose seams a fill would close again;
+    ``starts``: further named start layouts (n,2) for the refinement, e.g. the uncut map with its slits opened)."""
     from heatparam.refine import RefineParams, refine
 
     with prog.stage("fill decision"):
         fill_used, fill_reason = decide_fill(opts, surface, seamed)
-    check = start_checks(surface, opts, prog)
+    check = start_checks(surface, opts, prog, seamed)
     if check.skipped is not None:
         fill = {"used": False, "reason": fill_reason, "skipped": check.skipped} if fill_used else \
             {"used": False, "reason": fill_reason}
         with prog.stage("refine"):
             uv, refine_report = refine(surface.V, surface.F, None, RefineParams.from_options(opts), prog,
-                                       surface.conformal, check.lscm, surface.gradients())
+                                       surface.conformal, check.lscm, surface.gradients(), starts)
         summary = map_metrics(surface.V, surface.F, uv, prog, None)
         method = method_report(opts, None, check.skipped, fill, refine_report, check.fold_check)
         return Flat(uv, summary, method, None, None, [])
@@ -170,7 +172,7 @@ def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = Fals
     if opts.refine != "none":
         with prog.stage("refine"):
             uv, refine_report = refine(surface.V, surface.F, uv, RefineParams.from_options(opts), prog,
-                                       surface.conformal, check.lscm, surface.gradients())
+                                       surface.conformal, check.lscm, surface.gradients(), starts)
     summary = map_metrics(surface.V, surface.F, uv, prog, m.layout)
     method = method_report(opts, m.layout, None, m.fill, refine_report, check.fold_check)
     return Flat(uv, summary, method, m.layout, m.fill_surface, m.warnings)

@@ -21,6 +21,7 @@ from heatparam.options import SEAM_MIN_GAIN, SEAM_TRY_EXCESS
 from heatparam.pipeline.report import Flat
 from heatparam.pipeline.surface import Surface
 from heatparam.progress import Progress
+from heatparam.refine.seam_start import open_slits
 
 
 class Cut(NamedTuple):
@@ -43,9 +44,15 @@ class SeamResult(NamedTuple):
 
 
 def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat,
-                flatten: Callable[[Surface, object, Progress, bool], Flat]) -> SeamResult:
-    """``Options.seams``: the flattening (``flatten(cut surface, opts, prog, seamed=True)``) of the surface cut
-    open from every hole to the border when it is asked for or (``auto``) clearly better than ``flat``."""
+                flatten: Callable[..., Flat], uncut_start: bool = False) -> SeamResult:
+    """``Options.seams``: the flattening (``flatten(cut surface, opts, prog, seamed=True, starts)``) of the surface
+    cut open from every hole to the border when it is asked for or (``auto``) clearly better than ``flat``.
+
+    ``uncut_start``: offer the refinement ``flat``'s map with the slits opened (``refine.seam_start.open_slits``)
+    as the start candidate ``"uncut"``. Off by default: on beetle that start wins on energy (1.0106 vs Tutte's 37.6)
+    but its polish ends in a worse minimum (energy 1.0039 vs 1.0007, iso mean 1.041 vs 1.019) after more Newton
+    iterations (67 vs 44), on halftunnel LSCM's start is lower (1.218 vs 1.300); ``bench/bench_seams.py``.
+    """
     rep: dict = {"mode": opts.seams, "used": False}
     reason = _no_cut_reason(surface, opts, flat)
     if reason is not None:
@@ -61,7 +68,12 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat,
     lengths = [float(np.linalg.norm(np.diff(surface.V[p], axis=0), axis=1).sum()) for p in paths]
     rep.update(seams=len(paths), length=round(sum(lengths), 9), longest=round(max(lengths), 9),
                split_vertices=int(len(Vs) - len(surface.V)), iso_mean_without=iso)
-    cut = flatten(cut_surface, opts, prog, True)
+    starts = None
+    if uncut_start and opts.refine != "none":
+        with prog.stage("seams"):
+            x, rep["uncut_start"] = open_slits(flat.uv[src], Fs, src)
+        starts = None if x is None else {"uncut": x}
+    cut = flatten(cut_surface, opts, prog, True, starts)
     iso_s = cut.summary["iso_mean"]
     rep.update(iso_mean_with=iso_s, bijective_with=cut.summary["bijective"])
     if opts.seams == "auto":

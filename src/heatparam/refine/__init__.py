@@ -62,7 +62,8 @@ class RefineParams(NamedTuple):
 
 def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefineParams | None = None,
            progress=None, conformal: Callable[[], np.ndarray] | None = None, lscm: LscmStart | None = None,
-           surface: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, dict]:
+           surface: tuple[np.ndarray, np.ndarray] | None = None, extra_starts: dict[str, np.ndarray] | None = None
+           ) -> tuple[np.ndarray, dict]:
     """Make the layout ``uv`` (n,2) of (V (n,3), F (m,3)) bijective and near-isometric (true scale).
 
     Parameters
@@ -74,6 +75,7 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefinePa
     conformal : returns the LSCM layout if already computed (the fill decision computes it).
     lscm : the LSCM start already judged (``start.lscm_start``), if any.
     surface : ``energy.surface_gradients(V, F)`` if already computed.
+    extra_starts : further named start candidates (n,2), judged with the others (``start.choose_start``).
 
     Returns
     -------
@@ -92,7 +94,7 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefinePa
     disk = build_disk(V, F)
     loops = disk.loops
     g, area = surface if surface is not None else surface_gradients(V, F)
-    x, start = choose_start(V, F, uv, disk, g, area, lscm, conformal, params.solver)
+    x, start = choose_start(V, F, uv, disk, g, area, lscm, conformal, params.solver, extra_starts)
     report: dict = {"method": "sd", "holes": len(disk.holes), "start": start}
     x_start = x
     # One OpenBLAS thread: the polish's vector work is small, and OpenBLAS threads on it cost 10-60% on 2 cores

@@ -86,11 +86,12 @@ def lscm_start(V: np.ndarray, F: np.ndarray, conformal: Callable[[], np.ndarray]
 
 
 def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk, g: np.ndarray, area: np.ndarray,
-                 lscm: LscmStart | None, conformal: Callable[[], np.ndarray] | None, backend: str
-                 ) -> tuple[np.ndarray, dict]:
+                 lscm: LscmStart | None, conformal: Callable[[], np.ndarray] | None, backend: str,
+                 extra: dict[str, np.ndarray] | None = None) -> tuple[np.ndarray, dict]:
     """The polish's start: of the MDS layout ``uv`` (n,2) (a few flipped faces repaired: :func:`repaired_layout`;
-    None = not computed) and the LSCM layout (``lscm`` if given, else :func:`lscm_start`), the bijective one (no
-    flipped face, no crossing of any boundary loop) with the lower energy; if neither is bijective, Tutte's
+    None = not computed), the LSCM layout (``lscm`` if given, else :func:`lscm_start`) and the ``extra`` named
+    layouts (n,2) (e.g. ``"uncut"``: the seams stage's uncut map with its slits opened), the bijective one (no
+    flipped face, no crossing of any boundary loop) with the lowest energy; if none is bijective, Tutte's
     embedding of the disk. Returns (layout (n,2), the report's ``start`` part)."""
     if lscm is None:
         lscm = lscm_start(V, F, conformal, (g, area))
@@ -116,6 +117,12 @@ def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk
     report.update(lscm_flips=lscm.flips, lscm_crossings=lscm.crossings)
     if lscm.energy is not None:
         cands["lscm"], energies["lscm"] = lscm.uv, lscm.energy
+    for name, xe in (extra or {}).items():
+        xe = np.asarray(xe, dtype=np.float64)
+        flips, cross = bijectivity(xe, F, g)
+        report[f"{name}_flips"], report[f"{name}_crossings"] = flips, cross
+        if flips == 0 and cross == 0:
+            cands[name], energies[name] = xe, normalized_energy(xe, F, g, area)
     # of the bijective candidates, start from the one with the lower energy: on developable parts LSCM (already
     # computed by the fill decision) is an isometry up to round-off, where MDS needs 5-7 Newton iterations
     if cands:
