@@ -74,8 +74,8 @@ def handling():
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
-        if outermost:
-            _quiet = False
+        if outermost:  # the run is over: an interrupt it noted must not stop later library use in this process
+            _interrupted = _quiet = False
 
 
 @contextlib.contextmanager

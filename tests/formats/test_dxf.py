@@ -13,6 +13,7 @@ from heatparam.formats.pattern import build_pattern, layout_charts
 from heatparam.formats.units import UNITS
 from heatparam.mesh.topology import boundary_edges, boundary_loops
 
+from conftest import shared_mesh
 from formats_cases import (
     cylinder_map,
     edge_stretch_bounds,
@@ -231,3 +232,18 @@ def test_build_pattern_refuses_inconsistent_maps():
         build_pattern(m.V, m.F, m.uv, m.Fuv, m.uv_vertex, np.arange(len(m.F)) % 2)
     with pytest.raises(HeatparamError, match="one id per face"):
         build_pattern(m.V, m.F, m.uv, m.Fuv, m.uv_vertex, np.zeros(3))
+
+
+def test_dxf_bytes_do_not_depend_on_the_process(tmp_path):
+    """The same map gives the same DXF in a fresh process and in one that wrote other DXFs before (ezdxf's CLASSES
+    order depended on that: a batch's DXF differed from unwrap's)."""
+    import subprocess
+    import sys
+
+    src = shared_mesh("woody.obj")
+    assert main(["unwrap", str(src), "-o", str(tmp_path / "first.dxf"), "--quiet", "--seed", "3"]) == 0
+    assert main(["unwrap", str(src), "-o", str(tmp_path / "second.dxf"), "--quiet", "--seed", "3"]) == 0
+    subprocess.run([sys.executable, "-m", "heatparam", "unwrap", str(src), "-o", str(tmp_path / "fresh.dxf"),
+                    "--quiet", "--seed", "3"], check=True)
+    fresh = (tmp_path / "fresh.dxf").read_bytes()
+    assert (tmp_path / "second.dxf").read_bytes() == fresh and (tmp_path / "first.dxf").read_bytes() == fresh

@@ -93,6 +93,10 @@ def write_dxf(path: str | os.PathLike, pattern: Pattern, units: str = "mm", titl
     for i, line in enumerate(lines):
         msp.add_text(line, height=th, dxfattribs={"layer": "ANNOTATION"}).set_placement(
             (lo[0], lo[1] - (2 + 1.5 * i) * th), align=TextEntityAlignment.LEFT)
+    # the CLASSES section in a fixed order: ezdxf registers classes in an order that depends on the documents this
+    # process made before (the same map gave different bytes in a fresh process and after other DXFs)
+    doc.classes.add_required_classes(doc.dxfversion)
+    doc.classes.classes = type(doc.classes.classes)(sorted(doc.classes.classes.items()))
     with _fixed_metadata():
         doc.saveas(os.fspath(path))
     return {"format": "dxf", "units": units, "charts": len(pattern.charts), "outlines": len(pattern.charts),
