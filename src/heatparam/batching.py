@@ -322,11 +322,83 @@ def _task_memory_default() -> int | None:
         return None
 
 
+def _watch(proc: subprocess.Popen, timeout: float | None, mem_limit: int | None, t0: float) -> tuple[int, str | None]:
+    """Poll the running job ``proc`` until it ends, killing it past ``mem_limit`` bytes of resident memory or
+    ``timeout`` seconds since ``t0``. Returns (peak resident bytes seen, why it was killed or None)."""
+    import psutil
+
+    peak, reason = 0, None
+    ps = psutil.Process(proc.pid)
+    while proc.poll() is None:
+        with contextlib.suppress(psutil.Error):
+            rss = ps.memory_info().rss
+            peak = max(peak, rss)
+            if mem_limit and rss > mem_limit:
+                reason = f"exceeded the task memory limit ({mem_limit / 2**20:.0f} MiB)"
+        if timeout and time.perf_counter() - t0 > timeout:
+            reason = f"timed out after {timeout:g} s (--task-timeout)"
+        if reason:
+            proc.kill()
+            proc.wait()
+            break
+        time.sleep(POLL_S)
+    return peak, reason
+
+
+def _run_subprocess(tmp: Path, timeout: float | None, mem_limit: int | None,
+                    t0: float) -> tuple[int, int, str | None]:
+    """Run :func:`_job_main` on ``tmp`` in a subprocess (output into ``tmp/log.txt``) under the limits; it never
+    outlives this call. Returns (its exit code, peak resident bytes, why it was killed or None)."""
+    with open(tmp / "log.txt", "wb") as log:
+        proc = subprocess.Popen(
+            [sys.executable, "-c", "import sys; from heatparam.batching import _job_main; _job_main(sys.argv[1])",
+             str(tmp)], stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+            preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
+        try:
+            peak, reason = _watch(proc, timeout, mem_limit, t0)
+        finally:
+            if proc.poll() is None:  # an exception here (the task cancelled): never leave the mesh running
+                proc.kill()
+                proc.wait()
+    return proc.returncode, peak, reason
+
+
+def _death_reason(tmp: Path, rc: int) -> str:
+    """Why a job that wrote no ``result.json`` died: its exit code or signal, and the last line of its log."""
+    why = f"exit code {rc}"
+    if rc < 0:
+        why = f"signal {-rc}"
+        with contextlib.suppress(ValueError):
+            why += f" ({signal.Signals(-rc).name})"
+    last = (tmp / "log.txt").read_text(errors="replace").strip().splitlines()
+    return f"the job died: {why}" + (f": {last[-1]}" if last else "")
+
+
+def _job_row(item: Item, out_dir: Path, spec: dict, tmp: Path, rc: int, seconds: float,
+             peak_mb: float | None) -> dict:
+    """The summary row of a job that ran to its end in ``tmp``; on success its outputs are moved into place, the
+    report last."""
+    try:
+        res = json.loads((tmp / "result.json").read_text())
+    except (OSError, ValueError):
+        return _bad_row(item, out_dir, "failed", _death_reason(tmp, rc), seconds, peak_mb)
+    peak_mb = max(peak_mb or 0.0, res.get("peak_mem_mb") or 0.0) or None
+    if res["status"] != "ok":
+        row = _bad_row(item, out_dir, res["status"], res["reason"], seconds, peak_mb)
+        if res.get("final"):
+            st = item.input.stat()
+            row["_refusal"] = {"options_hash": spec["options_hash"], "size": st.st_size,
+                               "mtime_ns": st.st_mtime_ns}
+        return row
+    report = json.loads((tmp / f"{item.stem}.json").read_text())
+    for p in _expected_outputs(item, out_dir, tuple(spec["formats"]), spec["preview"]):  # report last
+        os.replace(tmp / p.name, p)
+    return _row_from_report(item, out_dir, "ok", report, seconds, peak_mb)
+
+
 def run_job(spec: dict) -> dict:
     """One mesh, as a Dask task: the job in a subprocess under the time and memory limits; outputs renamed into
     place on success. Returns the summary row (a dict of :data:`COLUMNS`)."""
-    import psutil
-
     item = Item(Path(spec["input"]), PurePosixPath(spec["rel"]), spec["stem"])
     out_dir = Path(spec["out_dir"])
     dest = out_dir / item.rel
@@ -335,61 +407,14 @@ def run_job(spec: dict) -> dict:
     tmp.mkdir()
     t0 = time.perf_counter()
     timeout, mem_limit = spec["task_timeout"], spec["task_memory"] or _task_memory_default()
-    peak, reason = 0, None
     try:
         (tmp / "spec.json").write_text(json.dumps(spec))
-        with open(tmp / "log.txt", "wb") as log:
-            proc = subprocess.Popen(
-                [sys.executable, "-c", "import sys; from heatparam.batching import _job_main; _job_main(sys.argv[1])",
-                 str(tmp)], stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-                preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
-            try:
-                ps = psutil.Process(proc.pid)
-                while proc.poll() is None:
-                    with contextlib.suppress(psutil.Error):
-                        rss = ps.memory_info().rss
-                        peak = max(peak, rss)
-                        if mem_limit and rss > mem_limit:
-                            reason = f"exceeded the task memory limit ({mem_limit / 2**20:.0f} MiB)"
-                    if timeout and time.perf_counter() - t0 > timeout:
-                        reason = f"timed out after {timeout:g} s (--task-timeout)"
-                    if reason:
-                        proc.kill()
-                        proc.wait()
-                        break
-                    time.sleep(POLL_S)
-            finally:
-                if proc.poll() is None:  # an exception here (the task cancelled): never leave the mesh running
-                    proc.kill()
-                    proc.wait()
+        rc, peak, reason = _run_subprocess(tmp, timeout, mem_limit, t0)
         seconds = time.perf_counter() - t0
         peak_mb = round(peak / 2**20, 1) if peak else None
         if reason:
             return _bad_row(item, out_dir, "failed", reason, seconds, peak_mb)
-        try:
-            res = json.loads((tmp / "result.json").read_text())
-        except (OSError, ValueError):
-            rc = proc.returncode
-            why = f"exit code {rc}"
-            if rc < 0:
-                why = f"signal {-rc}"
-                with contextlib.suppress(ValueError):
-                    why += f" ({signal.Signals(-rc).name})"
-            last = (tmp / "log.txt").read_text(errors="replace").strip().splitlines()
-            return _bad_row(item, out_dir, "failed", f"the job died: {why}" + (f": {last[-1]}" if last else ""),
-                            seconds, peak_mb)
-        peak_mb = max(peak_mb or 0.0, res.get("peak_mem_mb") or 0.0) or None
-        if res["status"] != "ok":
-            row = _bad_row(item, out_dir, res["status"], res["reason"], seconds, peak_mb)
-            if res.get("final"):
-                st = item.input.stat()
-                row["_refusal"] = {"options_hash": spec["options_hash"], "size": st.st_size,
-                                   "mtime_ns": st.st_mtime_ns}
-            return row
-        report = json.loads((tmp / f"{item.stem}.json").read_text())
-        for p in _expected_outputs(item, out_dir, tuple(spec["formats"]), spec["preview"]):  # report last
-            os.replace(tmp / p.name, p)
-        return _row_from_report(item, out_dir, "ok", report, seconds, peak_mb)
+        return _job_row(item, out_dir, spec, tmp, rc, seconds, peak_mb)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
@@ -511,6 +536,36 @@ def run_batch(paths, out_dir, client=None, *, formats="obj", force: bool = False
     opts = make_options(options, **option_fields, progress=False)
     opts.validate()
     fmts = parse_formats(formats)
+    mem = _check_limits(task_timeout, task_memory, workers, scheduler, client)
+    out, items = _prepare_out(paths, out_dir)
+    h = options_hash(opts, fmts, preview)
+    _clean_tmp(out)
+
+    rows, todo = _triage(items, out, h, fmts, preview, force)
+    opt_fields = {k: v for k, v in dataclasses.asdict(opts).items()}
+    specs = {i: {"input": str(items[i].input), "rel": str(items[i].rel), "stem": items[i].stem, "out_dir": str(out),
+                 "formats": list(fmts), "preview": preview, "options": opt_fields, "options_hash": h,
+                 "task_timeout": task_timeout, "task_memory": mem} for i in todo}
+    interrupted = False
+    if todo:
+        with _client(client, scheduler, workers) as c:
+            interrupted = _submit(c, items, specs, rows, out, progress)
+    _clean_tmp(out)
+    ordered = _final_rows(items, rows, out, h, fmts, preview)
+    refusals = {r["input"]: {**r.pop("_refusal"), "reason": r["reason"]} for r in ordered if "_refusal" in r}
+    counts = {s: sum(r["status"] == s for r in ordered) for s in STATUSES}
+    summary = {"heatparam_version": __version__, "out_dir": str(out), "options": opt_fields, "options_hash": h,
+               "formats": list(fmts), "wall_s": round(time.perf_counter() - t_start, 3), "counts": counts,
+               "interrupted": interrupted, "rows": ordered, "refusals": refusals}
+    write_summary(out, summary)
+    if interrupted:
+        raise KeyboardInterrupt
+    return summary
+
+
+def _check_limits(task_timeout: float | None, task_memory, workers: int | None, scheduler: str | None,
+                  client) -> int | None:
+    """Validate :func:`run_batch`'s task limits and cluster choice; returns ``task_memory`` in bytes (or None)."""
     if task_timeout is not None and not task_timeout > 0:
         raise HeatparamError(f"task timeout must be positive, got {task_timeout}")
     mem = _parse_bytes(task_memory)
@@ -518,16 +573,22 @@ def run_batch(paths, out_dir, client=None, *, formats="obj", force: bool = False
         raise HeatparamError(f"workers must be at least 1, got {workers}")
     if workers is not None and (scheduler or client is not None):
         raise HeatparamError("--workers sizes the local cluster; a scheduler's workers are its own")
+    return mem
+
+
+def _prepare_out(paths: list, out_dir) -> tuple[Path, list[Item]]:
+    """Discover the inputs and create ``out_dir``; returns both resolved."""
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise HeatparamError(f"{out} exists and is not a folder")
     items = discover(paths, out)
     out.mkdir(parents=True, exist_ok=True)
-    out = out.resolve()
-    items = [Item(it.input.resolve(), it.rel, it.stem) for it in items]
-    h = options_hash(opts, fmts, preview)
-    _clean_tmp(out)
+    return out.resolve(), [Item(it.input.resolve(), it.rel, it.stem) for it in items]
 
+
+def _triage(items: list[Item], out: Path, h: str, fmts: tuple[str, ...], preview: bool,
+            force: bool) -> tuple[dict[int, dict], list[int]]:
+    """Rows for the inputs that need no run (up to date, or refused before), and the indices of the others."""
     rows: dict[int, dict] = {}
     todo = []
     refused_before = {} if force else _previous_refusals(out)
@@ -539,30 +600,19 @@ def run_batch(paths, out_dir, client=None, *, formats="obj", force: bool = False
             rows[i] = prev
         else:
             todo.append(i)
-    opt_fields = {k: v for k, v in dataclasses.asdict(opts).items()}
-    specs = {i: {"input": str(items[i].input), "rel": str(items[i].rel), "stem": items[i].stem, "out_dir": str(out),
-                 "formats": list(fmts), "preview": preview, "options": opt_fields, "options_hash": h,
-                 "task_timeout": task_timeout, "task_memory": mem} for i in todo}
-    interrupted = False
-    if todo:
-        with _client(client, scheduler, workers) as c:
-            interrupted = _submit(c, items, specs, rows, out, progress)
-    _clean_tmp(out)
-    for i, it in enumerate(items):  # interrupted: a mesh whose outputs got into place is done all the same
+    return rows, todo
+
+
+def _final_rows(items: list[Item], rows: dict[int, dict], out: Path, h: str, fmts: tuple[str, ...],
+                preview: bool) -> list[dict]:
+    """All rows in input order; an input with no row (interrupted) is ok when its outputs got into place, else
+    failed."""
+    for i, it in enumerate(items):
         if i not in rows:
             rep = up_to_date(it, out, h, fmts, preview)
             rows[i] = (_row_from_report(it, out, "ok", rep, None, None) if rep is not None
                        else _bad_row(it, out, "failed", "interrupted"))
-    ordered = [rows[i] for i in range(len(items))]
-    refusals = {r["input"]: {**r.pop("_refusal"), "reason": r["reason"]} for r in ordered if "_refusal" in r}
-    counts = {s: sum(r["status"] == s for r in ordered) for s in STATUSES}
-    summary = {"heatparam_version": __version__, "out_dir": str(out), "options": opt_fields, "options_hash": h,
-               "formats": list(fmts), "wall_s": round(time.perf_counter() - t_start, 3), "counts": counts,
-               "interrupted": interrupted, "rows": ordered, "refusals": refusals}
-    write_summary(out, summary)
-    if interrupted:
-        raise KeyboardInterrupt
-    return summary
+    return [rows[i] for i in range(len(items))]
 
 
 def _submit(client, items: list[Item], specs: dict[int, dict], rows: dict[int, dict], out: Path,

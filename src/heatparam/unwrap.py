@@ -57,7 +57,8 @@ def write_outputs(V, F, result, plans, units: str = DEFAULT_UNITS, sheet=None, s
 
     order = sorted(plans, key=lambda pl: pl.format == "json")  # the report last: it lists the other outputs
     report["outputs"] = written
-    ctx = {"units": units, "pattern": pattern, "strain_map": strain_map, "fit_tolerance": fit_tolerance}
+    ctx = {"units": units, "pattern": pattern, "strain_map": strain_map, "fit_tolerance": fit_tolerance,
+           "names": {pl.format: pl.path.name for pl in plans}}
     from heatparam import interrupt
 
     with interrupt.deferred():  # all the outputs or none: an interrupt waits until they are complete
@@ -113,7 +114,7 @@ def _writer(fmt: str, V, F, result, ctx: dict):
     if fmt == "step":
         write_step = step_writer()
         return lambda tmp: write_step(tmp, V, F, uv, Fuv, uv_vertex, chart=chart, units=units,
-                                      tolerance=ctx["fit_tolerance"])
+                                      tolerance=ctx["fit_tolerance"], name=ctx["names"]["step"])
     if fmt == "png":
         from heatparam import render
 

@@ -164,3 +164,17 @@ def test_camelhead(tmp_path):
     assert back["points_measured"] == len(V)
     print(f"camelhead: {rep['charts'][0]['control_points']} control points, max {rep['max_deviation']:.3g} "
           f"rms {rep['rms_deviation']:.3g} (tol {rep['tolerance']:.3g}), write {seconds:.1f} s")
+
+
+def test_cli_step_bytes_are_reproducible(tmp_path):
+    """Through ``unwrap -o`` (a temporary renamed into place) the STEP header names the final file, not the
+    temporary: the same map gives the same bytes in any folder."""
+    from heatparam.cli import main
+
+    from conftest import shared_mesh
+
+    (tmp_path / "x").mkdir()
+    for out in (tmp_path / "w.step", tmp_path / "x" / "w.step"):
+        assert main(["unwrap", str(shared_mesh("woody.obj")), "-o", str(out), "--quiet"]) == 0
+    data = (tmp_path / "w.step").read_bytes()
+    assert data == (tmp_path / "x" / "w.step").read_bytes() and b".tmp" not in data

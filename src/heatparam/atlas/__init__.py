@@ -102,71 +102,13 @@ def atlas(V: np.ndarray, F: np.ndarray, *, max_distortion: float | None = None, 
     charts: list[dict] = []  # each: faces (input rows), Fl, vert (input vertex per local row), uv, info
     comp_reports = []
     for ci, comp in enumerate(rep.components):
-        topo = Topology.build(comp.V, comp.F)
-        whole = None
-        if max_distortion is None:
-            from heatparam.mesh import validate_mesh
-
-            try:
-                validate_mesh(comp.V, comp.F, flatten=True)
-                whole = True
-            except HeatparamError:
-                whole = False
-        done = False
-        if whole:
-            from heatparam.pipeline import parameterize_disk as parameterize
-
-            try:
-                res = parameterize(comp.V, comp.F, **opts)
-                met = res.report["metrics"]
-                if met["bijective"] and not met["flips"]:
-                    Fuv = res.Fuv if res.Fuv is not None else comp.F
-                    charts.append({"faces": comp.faces, "Fl": np.asarray(Fuv, dtype=np.int64),
-                                   "vert": comp.vertex[res.uv_vertex], "uv": res.uv, "component": ci,
-                                   "info": {"iso_mean": float(met["iso_mean"]), "flips": int(met["flips"]),
-                                            "bijective": True, "method": "pipeline (whole part)"}})
-                    done = True
-            except HeatparamError:
-                pass
-        if done:
+        whole = _whole_part(comp, ci, opts) if max_distortion is None else None
+        if whole is not None:
+            charts.append(whole)
             comp_reports.append({"faces": int(len(comp.F)), "charts": 1, "segmented": False})
             continue
-        seg = segment(topo, bound, max_charts=max_charts, seed=seed)
-        k = int(seg.chart.max()) + 1
-        todo = [(np.flatnonzero(seg.chart == c), seg.glued) for c in range(k)]
-        made = 0
-        while todo:
-            faces, glued = todo.pop()
-            Vl, Fl, vert = chart_mesh(topo, faces, glued)
-            uv, info = _flatten_chart(Vl, Fl, opts)
-            if not _chart_ok(info, None if seg.stats["capped"] else bound) and len(faces) > 1:
-                # the paper's future-work rule: a chart that is not bijective or exceeds the bound is split
-                quick, qiso, qbij = quick_flatten(Vl, Fl)
-                parts = grow(topo, faces, 179.0, max(1, (len(faces) + 1) // 2), seed)  # two halves
-                if len(parts) > 1:
-                    for p in parts:
-                        g = np.zeros_like(glued)
-                        h = (3 * p[:, None] + np.arange(3)).ravel()
-                        inside = np.zeros(len(topo.F), dtype=bool)
-                        inside[p] = True
-                        o = topo.opp[h]
-                        ok = o >= 0
-                        ok[ok] = inside[o[ok] // 3]
-                        g[h[ok]] = True  # a fresh half: welded inside
-                        todo.append((p, g))
-                    continue
-                bijective = uv is not None and info.get("bijective") and not info.get("flips")
-                if qbij and not bijective:
-                    uv, info = quick, {"iso_mean": qiso, "flips": 0, "bijective": True, "method": "lscm"}
-                elif not bijective:  # last resort: one chart per face, each laid out exactly
-                    todo.extend((faces[i:i + 1], np.zeros_like(glued)) for i in range(len(faces)))
-                    continue
-            if uv is None:
-                raise HeatparamError(f"a chart of {len(faces)} faces could not be flattened: {info.get('error')}")
-            charts.append({"faces": comp.faces[faces], "Fl": Fl, "vert": comp.vertex[vert], "uv": uv,
-                           "component": ci, "info": info})
-            made += 1
-        comp_reports.append({"faces": int(len(comp.F)), "charts": made, "segmented": True, **seg.stats})
+        made, stats = _segmented_part(comp, ci, bound, max_charts, seed, opts, charts)
+        comp_reports.append({"faces": int(len(comp.F)), "charts": made, "segmented": True, **stats})
     t_flat = time.perf_counter() - t0
     placed, pinfo = pack_charts([c["uv"] for c in charts], [c["Fl"] for c in charts], pack, padding, resolution)
     m = len(F)
@@ -186,6 +128,79 @@ def atlas(V: np.ndarray, F: np.ndarray, *, max_distortion: float | None = None, 
                      max_charts)
     report["seconds"] = {"charts": t_flat, "total": time.perf_counter() - t0}
     return AtlasResult(uv=uv, Fuv=Fuv, uv_vertex=uv_vertex, chart=chart_of, report=report)
+
+
+def _whole_part(comp, ci: int, opts: dict) -> dict | None:
+    """A component that is a single disk (not nearly closed), flattened whole by the pipeline, as one chart when
+    its map is bijective; None otherwise (it is segmented)."""
+    from heatparam.mesh import validate_mesh
+    from heatparam.pipeline import parameterize_disk
+
+    try:
+        validate_mesh(comp.V, comp.F, flatten=True)
+        res = parameterize_disk(comp.V, comp.F, **opts)
+    except HeatparamError:
+        return None
+    met = res.report["metrics"]
+    if not (met["bijective"] and not met["flips"]):
+        return None
+    Fuv = res.Fuv if res.Fuv is not None else comp.F
+    return {"faces": comp.faces, "Fl": np.asarray(Fuv, dtype=np.int64), "vert": comp.vertex[res.uv_vertex],
+            "uv": res.uv, "component": ci, "info": {"iso_mean": float(met["iso_mean"]), "flips": int(met["flips"]),
+                                                   "bijective": True, "method": "pipeline (whole part)"}}
+
+
+def _segmented_part(comp, ci: int, bound: float, max_charts: int | None, seed: int, opts: dict,
+                    charts: list[dict]) -> tuple[int, dict]:
+    """Segment a component (``segment.segment``), flatten every chart with the pipeline, split a chart that is not
+    bijective or exceeds the bound in two (the paper's future-work rule) down to single faces; the charts are
+    appended to ``charts``. Returns (charts made, the segmentation's stats)."""
+    topo = Topology.build(comp.V, comp.F)
+    seg = segment(topo, bound, max_charts=max_charts, seed=seed)
+    todo = [(np.flatnonzero(seg.chart == c), seg.glued) for c in range(int(seg.chart.max()) + 1)]
+    made = 0
+    while todo:
+        faces, glued = todo.pop()
+        Vl, Fl, vert = chart_mesh(topo, faces, glued)
+        uv, info = _flatten_chart(Vl, Fl, opts)
+        if not _chart_ok(info, None if seg.stats["capped"] else bound) and len(faces) > 1:
+            halves = _halves(topo, faces, glued, seed)
+            if halves:
+                todo.extend(halves)
+                continue
+            quick, qiso, qbij = quick_flatten(Vl, Fl)
+            bijective = uv is not None and info.get("bijective") and not info.get("flips")
+            if qbij and not bijective:
+                uv, info = quick, {"iso_mean": qiso, "flips": 0, "bijective": True, "method": "lscm"}
+            elif not bijective:  # last resort: one chart per face, each laid out exactly
+                todo.extend((faces[i:i + 1], np.zeros_like(glued)) for i in range(len(faces)))
+                continue
+        if uv is None:
+            raise HeatparamError(f"a chart of {len(faces)} faces could not be flattened: {info.get('error')}")
+        charts.append({"faces": comp.faces[faces], "Fl": Fl, "vert": comp.vertex[vert], "uv": uv,
+                       "component": ci, "info": info})
+        made += 1
+    return made, seg.stats
+
+
+def _halves(topo, faces: np.ndarray, glued: np.ndarray, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The chart ``faces`` grown again from two far seeds into two halves, each welded inside; [] when it will not
+    split."""
+    parts = grow(topo, faces, 179.0, max(1, (len(faces) + 1) // 2), seed)  # two halves
+    if len(parts) < 2:
+        return []
+    out = []
+    for p in parts:
+        g = np.zeros_like(glued)
+        h = (3 * p[:, None] + np.arange(3)).ravel()
+        inside = np.zeros(len(topo.F), dtype=bool)
+        inside[p] = True
+        o = topo.opp[h]
+        ok = o >= 0
+        ok[ok] = inside[o[ok] // 3]
+        g[h[ok]] = True  # a fresh half: welded inside
+        out.append((p, g))
+    return out
 
 
 def seam_length(V: np.ndarray, F: np.ndarray, Fuv: np.ndarray) -> float:

@@ -167,8 +167,27 @@ def build_pattern(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray,
         When the arrays disagree in shape, a uv row is used by two charts, or a chart's UV boundary is not a set
         of closed loops.
     """
-    from heatparam.mesh.topology import boundary_edges, boundary_loops
+    V, F, uv, Fuv, uv_vertex, chart = _checked_map(V, F, uv, Fuv, uv_vertex, chart)
+    interior = _interior_edge_keys(V, F)
+    iso, a3 = _true_scale_iso(V, F, uv, Fuv)
+    charts: list[Chart] = []
+    seam_edges = []  # (3D key, chart, row a, row b) for each UV boundary half-edge on an interior 3D edge
+    for c in np.unique(chart).tolist():
+        faces = np.flatnonzero(chart == c)
+        loops = _chart_loops(c, Fuv[faces], V, uv, uv_vertex, interior, seam_edges)
+        rows_c = np.unique(Fuv[faces])
+        good = np.isfinite(iso[faces])
+        w = a3[faces]
+        iso_mean = float(np.dot(w[good], iso[faces][good]) / w[good].sum()) if good.any() else float("inf")
+        charts.append(Chart(int(c), faces, rows_c, loops, float(w.sum()), iso_mean, float(iso[faces].max())))
+    orientation = {c.id: 1.0 if c.outer.signed_area >= 0 else -1.0 for c in charts}
+    seams = _pair_seams(seam_edges, uv, uv_vertex, orientation)
+    return Pattern(charts, seams, uv, uv_vertex, F, Fuv, chart)
 
+
+def _checked_map(V, F, uv, Fuv, uv_vertex, chart) -> tuple:
+    """:func:`build_pattern`'s arrays with their dtypes (``uv`` copied), checked, and ``chart`` filled in (None ->
+    zeros): (V, F, uv, Fuv, uv_vertex, chart). Raises HeatparamError."""
     V = np.asarray(V, dtype=np.float64)
     F = np.asarray(F, dtype=np.int64)
     uv = np.array(uv, dtype=np.float64)
@@ -187,44 +206,41 @@ def build_pattern(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray,
     row_chart[Fuv.ravel()] = np.repeat(chart, 3)
     if not np.array_equal(row_chart[Fuv], np.repeat(chart, 3).reshape(-1, 3)):
         raise HeatparamError("pattern: a uv row is shared by faces of two charts (give each chart its own rows)")
+    return V, F, uv, Fuv, uv_vertex, chart
 
-    # interior 3D edges: used by two faces of F
+
+def _interior_edge_keys(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Sorted keys ``a * len(V) + b`` (a < b) of the interior 3D edges: those used by two faces of F."""
     he = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
     key3 = np.sort(he, axis=1) @ np.array([len(V), 1], dtype=np.int64)
     k_unique, k_count = np.unique(key3, return_counts=True)
-    interior = k_unique[k_count >= 2]
+    return k_unique[k_count >= 2]
 
-    iso, a3 = _true_scale_iso(V, F, uv, Fuv)
-    charts: list[Chart] = []
-    seam_edges = []  # (3D key, chart, row a, row b) for each UV boundary half-edge on an interior 3D edge
-    for c in np.unique(chart).tolist():
-        faces = np.flatnonzero(chart == c)
-        loops_rows = boundary_loops(Fuv[faces])
-        if sum(len(r) for r in loops_rows) != len(boundary_edges(Fuv[faces])):  # an open chain has one row more
-            raise HeatparamError(f"pattern: the UV boundary of chart {c} is not a set of closed loops "
-                                 "(inconsistently oriented faces?)")
-        loops = []
-        for rows in loops_rows:
-            nxt = np.roll(rows, -1)
-            P = uv[rows]
-            L3 = float(np.linalg.norm(V[uv_vertex[rows]] - V[uv_vertex[nxt]], axis=1).sum())
-            loops.append(Loop(rows.astype(np.int64), "hole", L3, _closed_length(P), polygon_area(P)))
-            k = np.sort(np.stack([uv_vertex[rows], uv_vertex[nxt]], axis=1), axis=1) @ np.array([len(V), 1])
-            for i in np.flatnonzero(np.isin(k, interior)):
-                seam_edges.append((int(k[i]), c, int(rows[i]), int(nxt[i])))
-        if not loops:
-            raise HeatparamError(f"pattern: chart {c} has no boundary (a closed surface cannot be laid flat)")
-        outer = int(np.argmax([abs(lp.signed_area) for lp in loops]))
-        loops[outer].kind = "outer"
-        loops = [loops[outer]] + sorted((lp for i, lp in enumerate(loops) if i != outer), key=lambda lp: -lp.length_3d)
-        rows_c = np.unique(Fuv[faces])
-        good = np.isfinite(iso[faces])
-        w = a3[faces]
-        iso_mean = float(np.dot(w[good], iso[faces][good]) / w[good].sum()) if good.any() else float("inf")
-        charts.append(Chart(int(c), faces, rows_c, loops, float(w.sum()), iso_mean, float(iso[faces].max())))
-    orientation = {c.id: 1.0 if c.outer.signed_area >= 0 else -1.0 for c in charts}
-    seams = _pair_seams(seam_edges, uv, uv_vertex, orientation)
-    return Pattern(charts, seams, uv, uv_vertex, F, Fuv, chart)
+
+def _chart_loops(c: int, Fc: np.ndarray, V: np.ndarray, uv: np.ndarray, uv_vertex: np.ndarray,
+                 interior: np.ndarray, seam_edges: list) -> list[Loop]:
+    """The boundary loops of chart ``c`` (faces Fc (mc,3) of uv rows): outer first, then the holes by decreasing 3D
+    length. Appends its boundary half-edges on interior 3D edges to ``seam_edges``. Raises HeatparamError."""
+    from heatparam.mesh.topology import boundary_edges, boundary_loops
+
+    loops_rows = boundary_loops(Fc)
+    if sum(len(r) for r in loops_rows) != len(boundary_edges(Fc)):  # an open chain has one row more
+        raise HeatparamError(f"pattern: the UV boundary of chart {c} is not a set of closed loops "
+                             "(inconsistently oriented faces?)")
+    loops = []
+    for rows in loops_rows:
+        nxt = np.roll(rows, -1)
+        P = uv[rows]
+        L3 = float(np.linalg.norm(V[uv_vertex[rows]] - V[uv_vertex[nxt]], axis=1).sum())
+        loops.append(Loop(rows.astype(np.int64), "hole", L3, _closed_length(P), polygon_area(P)))
+        k = np.sort(np.stack([uv_vertex[rows], uv_vertex[nxt]], axis=1), axis=1) @ np.array([len(V), 1])
+        for i in np.flatnonzero(np.isin(k, interior)):
+            seam_edges.append((int(k[i]), c, int(rows[i]), int(nxt[i])))
+    if not loops:
+        raise HeatparamError(f"pattern: chart {c} has no boundary (a closed surface cannot be laid flat)")
+    outer = int(np.argmax([abs(lp.signed_area) for lp in loops]))
+    loops[outer].kind = "outer"
+    return [loops[outer]] + sorted((lp for i, lp in enumerate(loops) if i != outer), key=lambda lp: -lp.length_3d)
 
 
 def _pair_seams(seam_edges: list, uv: np.ndarray, uv_vertex: np.ndarray, orientation: dict) -> list[SeamSide]:

@@ -287,7 +287,7 @@ def _quiet_and_units(unit: str | None):
             printers.Value(i).SetTraceLevel(lev)
 
 
-def _write_shape(shape, path: Path, unit: str) -> None:
+def _write_shape(shape, path: Path, unit: str, name: str | None = None) -> None:
     from OCP.APIHeaderSection import APIHeaderSection_MakeHeader
     from OCP.IFSelect import IFSelect_RetDone
     from OCP.StepBasic import StepBasic_Product
@@ -296,6 +296,7 @@ def _write_shape(shape, path: Path, unit: str) -> None:
 
     if not path.parent.exists():
         raise HeatparamError(f"cannot write {path}: folder {path.parent} does not exist")
+    shown = Path(name) if name else path  # the file's own name in its header (not a temporary's)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp.step", dir=path.parent)
     os.close(fd)
     try:
@@ -307,12 +308,12 @@ def _write_shape(shape, path: Path, unit: str) -> None:
             for i in range(1, model.NbEntities() + 1):  # OpenCascade numbers the products it writes in a process
                 ent = model.Value(i)
                 if isinstance(ent, StepBasic_Product):
-                    ent.SetName(TCollection_HAsciiString(path.stem or "heatparam"))
-                    ent.SetId(TCollection_HAsciiString(path.stem or "heatparam"))
+                    ent.SetName(TCollection_HAsciiString(shown.stem or "heatparam"))
+                    ent.SetId(TCollection_HAsciiString(shown.stem or "heatparam"))
             hdr = APIHeaderSection_MakeHeader(model)
             hdr.SetTimeStamp(TCollection_HAsciiString(TIME_STAMP))
             hdr.SetOriginatingSystem(TCollection_HAsciiString("heatparam"))
-            hdr.SetName(TCollection_HAsciiString(path.name))
+            hdr.SetName(TCollection_HAsciiString(shown.name))
             if w.Write(tmp) != IFSelect_RetDone:
                 raise HeatparamError(f"cannot write {path}: the STEP writer failed")
         umask = os.umask(0)
@@ -328,12 +329,14 @@ def _write_shape(shape, path: Path, unit: str) -> None:
 # ------------------------------------------------------------------------------------------------------ public API
 def write_step(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray | None = None,
                uv_vertex: np.ndarray | None = None, chart: np.ndarray | None = None, tolerance: float | None = None,
-               units: str = "mm") -> dict:
+               units: str = "mm", name: str | None = None) -> dict:
     """Write a map as a STEP file of trimmed bicubic B-spline faces, one per chart (see the module docstring).
 
     Parameters
     ----------
     path : output ``.step``/``.stp``; written atomically (temporary file beside it, renamed on success).
+    name : the file name recorded in the STEP header and product (default: ``path``'s); the writing contract
+        writes to a temporary and passes the final name, so the same map gives the same bytes.
     V : (n,3) float64 vertices. F : (m,3) int64 triangles.
     uv : (k,2) float64 the map (``Result.uv``). Fuv : (m,3) int64 rows of uv at each face's corners
         (``Result.Fuv``; None = F). uv_vertex : (k,) int64 the vertex of each uv row (``Result.uv_vertex``; None =
@@ -353,6 +356,38 @@ def write_step(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.nda
     """
     t0 = time.perf_counter()
     _require_ocp()
+    V, F, uv, Fuv, uv_vertex, chart, tol = _checked_inputs(V, F, uv, Fuv, uv_vertex, chart, tolerance, units)
+    X_row = V[uv_vertex]
+    faces, charts, warnings, devs = [], [], [], []
+    for c in np.unique(chart):
+        fc = np.flatnonzero(chart == c)
+        chart_faces, report, dev, warning = _chart_faces(int(c), V, F[fc], uv, Fuv[fc], X_row, tol)
+        faces += chart_faces
+        charts.append(report)
+        devs.append(dev)
+        if warning:
+            warnings.append(warning)
+    shape, sewn = _assemble(faces, tol, warnings)
+    valid = _valid(shape)
+    if not valid:
+        warnings.append("OpenCascade's BRepCheck reports the shape invalid")
+    e1, e2 = V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]
+    area_mesh = float(0.5 * np.linalg.norm(np.cross(e1, e2), axis=1).sum())
+    area_faces = _area(shape)
+    _write_shape(shape, Path(path), UNITS[units][0], name)
+    dev = np.concatenate(devs)
+    return {
+        "tolerance": tol, "units": units, "degree": [DEGREE, DEGREE], "faces": len(faces), "sewn": sewn,
+        "valid": valid, "area_mesh": area_mesh, "area_faces": area_faces, "max_deviation": float(dev.max()),
+        "rms_deviation": float(np.sqrt(np.mean(dev**2))),
+        "control_points": int(sum(a * b for a, b in (c["control_points"] for c in charts))),
+        "seconds": time.perf_counter() - t0, "charts": charts, "warnings": warnings,
+    }
+
+
+def _checked_inputs(V, F, uv, Fuv, uv_vertex, chart, tolerance, units) -> tuple:
+    """:func:`write_step`'s arguments as arrays of the right dtypes, checked, with ``chart`` filled in (None ->
+    zeros) and the tolerance resolved: (V, F, uv, Fuv, uv_vertex, chart, tol). Raises HeatparamError."""
     if units not in UNITS:
         raise HeatparamError(f"unknown STEP units {units!r}: use one of {', '.join(UNITS)}")
     V = np.asarray(V, dtype=np.float64)
@@ -375,75 +410,67 @@ def write_step(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.nda
     tol = 1e-3 * diag if tolerance is None else float(tolerance)
     if not tol > 0:
         raise HeatparamError(f"the fit tolerance must be positive (got {tolerance})")
+    return V, F, uv, Fuv, uv_vertex, chart, tol
 
+
+def _chart_faces(c: int, V: np.ndarray, Fc3: np.ndarray, uv: np.ndarray, Fc: np.ndarray, X_row: np.ndarray,
+                 tol: float) -> tuple[list, dict, np.ndarray, str | None]:
+    """Fit one chart (its faces: Fc3 (mc,3) rows of V, Fc (mc,3) rows of uv) and trim one face per connected
+    piece: (faces, the chart's report entry, its vertex deviations, a warning or None)."""
+    rows = np.unique(Fc)
+    fit = _fit_surface(uv[rows], X_row[rows], uv[Fc].mean(1), V[Fc3].mean(1), tol)
+    surface = _occ_surface(fit)
+    pieces = _pieces(Fc)
+    faces = [_piece_face(surface, uv, Fc[piece], tol) for piece in pieces]
+    dev = fit["dev"]
+    report = {
+        "chart": c, "faces": len(pieces), "vertices": int(len(rows)),
+        "control_points": [int(s) for s in fit["poles"].shape[:2]], "degree": [DEGREE, DEGREE],
+        "knot_rounds": int(fit["rounds"]), "max_deviation": float(dev.max()),
+        "rms_deviation": float(np.sqrt(np.mean(dev**2))), "within_tolerance": fit["within"],
+    }
+    warning = None
+    if not fit["within"]:
+        warning = (f"chart {c}: the fit deviates by {dev.max():.4g} > tolerance {tol:.4g} at "
+                   f"{fit['poles'].shape[0]}x{fit['poles'].shape[1]} control points (the cap)")
+    return faces, report, dev, warning
+
+
+def _piece_face(surface, uv: np.ndarray, Fp: np.ndarray, tol: float):
+    """The face of ``surface`` trimmed by the boundary loops of one connected piece Fp (p,3) of a chart."""
+    loops = boundary_loops(Fp)
+    areas = np.array([polygon_area(uv[lp]) for lp in loops])
+    outer = int(np.argmax(np.abs(areas)))
+    reverse = areas[outer] < 0  # a mirrored map: uv loops run clockwise, the surface normal is flipped
+    ordered = [loops[outer]] + [lp for i, lp in enumerate(loops) if i != outer]
+    if reverse:
+        ordered = [lp[::-1] for lp in ordered]
+    return _occ_face(surface, uv, ordered, reverse, tol)
+
+
+def _assemble(faces: list, tol: float, warnings: list[str]) -> tuple:
+    """One face as it is; several sewn (tolerance 2 tol) when that keeps them valid, else a compound of them.
+    Returns (shape, sewn); appends to ``warnings`` when sewing was refused."""
     from OCP.BRep import BRep_Builder
     from OCP.BRepBuilderAPI import BRepBuilderAPI_Sewing
     from OCP.TopoDS import TopoDS_Compound
 
-    X_row = V[uv_vertex]
-    faces, charts, warnings, devs = [], [], [], []
-    for c in np.unique(chart):
-        fc = np.flatnonzero(chart == c)
-        Fc = Fuv[fc]
-        rows = np.unique(Fc)
-        fit = _fit_surface(uv[rows], X_row[rows], uv[Fc].mean(1), V[F[fc]].mean(1), tol)
-        surface = _occ_surface(fit)
-        pieces = _pieces(Fc)
-        for piece in pieces:
-            loops = boundary_loops(Fc[piece])
-            areas = np.array([polygon_area(uv[lp]) for lp in loops])
-            outer = int(np.argmax(np.abs(areas)))
-            reverse = areas[outer] < 0  # a mirrored map: uv loops run clockwise, the surface normal is flipped
-            ordered = [loops[outer]] + [lp for i, lp in enumerate(loops) if i != outer]
-            if reverse:
-                ordered = [lp[::-1] for lp in ordered]
-            faces.append(_occ_face(surface, uv, ordered, reverse, tol))
-        dev = fit["dev"]
-        devs.append(dev)
-        charts.append({
-            "chart": int(c), "faces": len(pieces), "vertices": int(len(rows)),
-            "control_points": [int(s) for s in fit["poles"].shape[:2]], "degree": [DEGREE, DEGREE],
-            "knot_rounds": int(fit["rounds"]), "max_deviation": float(dev.max()),
-            "rms_deviation": float(np.sqrt(np.mean(dev**2))), "within_tolerance": fit["within"],
-        })
-        if not fit["within"]:
-            warnings.append(f"chart {int(c)}: the fit deviates by {dev.max():.4g} > tolerance {tol:.4g} at "
-                            f"{fit['poles'].shape[0]}x{fit['poles'].shape[1]} control points (the cap)")
-
-    sewn = False
     if len(faces) == 1:
-        shape = faces[0]
-    else:
-        comp = TopoDS_Compound()
-        bld = BRep_Builder()
-        bld.MakeCompound(comp)
-        for f in faces:
-            bld.Add(comp, f)
-        shape = comp
-        sew = BRepBuilderAPI_Sewing(2.0 * tol)
-        for f in faces:
-            sew.Add(f)
-        sew.Perform()
-        sewed = sew.SewedShape()
-        if not sewed.IsNull() and _valid(sewed):
-            shape, sewn = sewed, True
-        else:
-            warnings.append("the charts were not sewn (sewing broke validity): the faces are written unjoined")
-    valid = _valid(shape)
-    if not valid:
-        warnings.append("OpenCascade's BRepCheck reports the shape invalid")
-    e1, e2 = V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]
-    area_mesh = float(0.5 * np.linalg.norm(np.cross(e1, e2), axis=1).sum())
-    area_faces = _area(shape)
-    _write_shape(shape, Path(path), UNITS[units][0])
-    dev = np.concatenate(devs)
-    return {
-        "tolerance": tol, "units": units, "degree": [DEGREE, DEGREE], "faces": len(faces), "sewn": sewn,
-        "valid": valid, "area_mesh": area_mesh, "area_faces": area_faces, "max_deviation": float(dev.max()),
-        "rms_deviation": float(np.sqrt(np.mean(dev**2))),
-        "control_points": int(sum(a * b for a, b in (c["control_points"] for c in charts))),
-        "seconds": time.perf_counter() - t0, "charts": charts, "warnings": warnings,
-    }
+        return faces[0], False
+    comp = TopoDS_Compound()
+    bld = BRep_Builder()
+    bld.MakeCompound(comp)
+    for f in faces:
+        bld.Add(comp, f)
+    sew = BRepBuilderAPI_Sewing(2.0 * tol)
+    for f in faces:
+        sew.Add(f)
+    sew.Perform()
+    sewed = sew.SewedShape()
+    if not sewed.IsNull() and _valid(sewed):
+        return sewed, True
+    warnings.append("the charts were not sewn (sewing broke validity): the faces are written unjoined")
+    return comp, False
 
 
 def read_step(path: str | os.PathLike, units: str | None = None):
@@ -480,21 +507,32 @@ def _distances(shape, P: np.ndarray) -> np.ndarray:
     nearest of a grid of surface samples, a local projection; the points over 0.9 of the max again with the global
     ``ValueOfUV``) counts where its foot lies on the face (``IntTools_FClass2d``: in or on the border); a point with
     no such foot is measured to the shape's edges by ``BRepExtrema_DistShapeShape``."""
-    from OCP.BRep import BRep_Builder, BRep_Tool
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
-    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
-    from OCP.gp import gp_Pnt, gp_Pnt2d
-    from OCP.IntTools import IntTools_FClass2d
-    from OCP.ShapeAnalysis import ShapeAnalysis_Surface
-    from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_IN, TopAbs_ON
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS, TopoDS_Compound
-    from scipy.spatial import cKDTree
+    from OCP.gp import gp_Pnt
 
     span = float(np.linalg.norm(P.max(0) - P.min(0))) if len(P) else 1.0
     prec = 1e-9 * span
     dist = np.full(len(P), np.inf)
     pts = [gp_Pnt(float(x), float(y), float(z)) for x, y, z in P]
+    faces = _project_local(shape, P, pts, prec, dist)
+    _project_global(faces, pts, prec, dist)
+    rest = np.flatnonzero(~np.isfinite(dist))
+    if len(rest):
+        _edge_distances(shape, pts, rest, dist)
+    return dist
+
+
+def _project_local(shape, P: np.ndarray, pts: list, prec: float, dist: np.ndarray) -> list[tuple]:
+    """Lower ``dist`` (p,) in place to each point's local projection on every face of ``shape`` whose foot lies on
+    the face; returns the (ShapeAnalysis_Surface, IntTools_FClass2d) of each face."""
+    from OCP.BRep import BRep_Tool
+    from OCP.gp import gp_Pnt2d
+    from OCP.IntTools import IntTools_FClass2d
+    from OCP.ShapeAnalysis import ShapeAnalysis_Surface
+    from OCP.TopAbs import TopAbs_FACE, TopAbs_IN, TopAbs_ON
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+    from scipy.spatial import cKDTree
+
     faces = []
     ex = TopExp_Explorer(shape, TopAbs_FACE)
     while ex.More():
@@ -517,10 +555,16 @@ def _distances(shape, P: np.ndarray) -> np.ndarray:
                 dist[i] = gap
         faces.append((sas, cls))
         ex.Next()
-    # a local projection can stop in a farther local minimum: the points that could hold the maximum (over 0.9 of
-    # it) are projected again with OpenCascade's global search, until no other point can (the max is then that of
-    # the global search; the others stay upper bounds)
-    redone = np.zeros(len(P), dtype=bool)
+    return faces
+
+
+def _project_global(faces: list[tuple], pts: list, prec: float, dist: np.ndarray) -> None:
+    """A local projection can stop in a farther local minimum: the points that could hold the maximum (over 0.9 of
+    it) are projected again with OpenCascade's global search, until no other point can (the max is then that of
+    the global search; the others stay upper bounds). Lowers ``dist`` in place."""
+    from OCP.TopAbs import TopAbs_IN, TopAbs_ON
+
+    redone = np.zeros(len(dist), dtype=bool)
     while True:
         finite = dist[np.isfinite(dist)]
         if not len(finite):
@@ -535,26 +579,36 @@ def _distances(shape, P: np.ndarray) -> np.ndarray:
                 if gap < dist[i] and cls.Perform(uv) in (TopAbs_IN, TopAbs_ON):
                     dist[i] = gap
         redone[todo] = True
-    rest = np.flatnonzero(~np.isfinite(dist))
-    if len(rest):
-        # no foot on a face: the nearest point of the shape is on an edge (the faces' borders), unless an interior
-        # local minimum is nearer; a point on an edge is a point of the shape, so this is an upper bound too (and
-        # ~20x faster than measuring to the faces: 0.5 s a point on camelhead's 195x180-pole face)
-        edges = TopoDS_Compound()
-        bld = BRep_Builder()
-        bld.MakeCompound(edges)
-        ex = TopExp_Explorer(shape, TopAbs_EDGE)
-        while ex.More():
-            bld.Add(edges, ex.Current())
-            ex.Next()
-        ds = BRepExtrema_DistShapeShape()
-        ds.LoadS2(edges)
-        for i in rest:
-            ds.LoadS1(BRepBuilderAPI_MakeVertex(pts[i]).Vertex())
-            if not ds.Perform() or not ds.IsDone():
-                raise HeatparamError("OpenCascade could not measure a distance to the shape")
-            dist[i] = ds.Value()
-    return dist
+
+
+def _edge_distances(shape, pts: list, rest: np.ndarray, dist: np.ndarray) -> None:
+    """Set ``dist[rest]`` to the distance of those points (no foot on a face) to the shape's edges.
+
+    The nearest point of the shape is then on an edge (the faces' borders), unless an interior local minimum is
+    nearer; a point on an edge is a point of the shape, so this is an upper bound too (and ~20x faster than
+    measuring to the faces: 0.5 s a point on camelhead's 195x180-pole face).
+    """
+    from OCP.BRep import BRep_Builder
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
+    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS_Compound
+
+    edges = TopoDS_Compound()
+    bld = BRep_Builder()
+    bld.MakeCompound(edges)
+    ex = TopExp_Explorer(shape, TopAbs_EDGE)
+    while ex.More():
+        bld.Add(edges, ex.Current())
+        ex.Next()
+    ds = BRepExtrema_DistShapeShape()
+    ds.LoadS2(edges)
+    for i in rest:
+        ds.LoadS1(BRepBuilderAPI_MakeVertex(pts[i]).Vertex())
+        if not ds.Perform() or not ds.IsDone():
+            raise HeatparamError("OpenCascade could not measure a distance to the shape")
+        dist[i] = ds.Value()
 
 
 def inspect_step(path: str | os.PathLike, points: np.ndarray | None = None, units: str | None = None,

@@ -61,7 +61,6 @@ def write_svg(path: str | os.PathLike, pattern: Pattern, units: str = "mm", titl
     x0, y_top = lo[0] - margin, hi[1] + margin
     W = float(hi[0] - lo[0] + 2 * margin + legend_w)
     H = float(hi[1] - lo[1] + 2 * margin + (1.5 * n_notes + 1) * th)
-    uv = pattern.uv
 
     def tr(P):  # model (u, v) → SVG user units (x right, y down)
         P = np.atleast_2d(P)
@@ -77,12 +76,34 @@ def write_svg(path: str | os.PathLike, pattern: Pattern, units: str = "mm", titl
         if V is None:
             raise ValueError("strain_map needs V")
         out += _strain_group(pattern, V, tr, vmax, th, W, margin, sw)
-    if len(pattern.sheets):
-        out.append(f'<g id="sheet" class="sheet" stroke-width="{sw:.4g}">')
-        for sx, sy, w, h in pattern.sheets:
-            P = tr(np.array([[sx, sy], [sx + w, sy], [sx + w, sy + h], [sx, sy + h]]))
-            out.append(f'<polygon points="{_fmt(P)}"/>')
-        out.append("</g>")
+    out += _sheet_group(pattern, tr, sw)
+    loops, n_holes = _loop_groups(pattern, tr, sw)
+    out += loops
+    out += _seam_group(pattern, tr, th, sw)
+    out += _annotation_group(pattern, tr, th, units, title, H, margin)
+    out.append("</svg>")
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write("\n".join(out) + "\n")
+    return {"format": "svg", "units": units, "width": svg_length(W, units), "height": svg_length(H, units),
+            "outlines": len(pattern.charts), "holes": n_holes, "seam_labels": len(pattern.seams),
+            "strain_map": bool(strain_map)}
+
+
+def _sheet_group(pattern: Pattern, tr, sw: float) -> list[str]:
+    """The ``sheet`` group (one rectangle per sheet frame), or nothing without sheets."""
+    if not len(pattern.sheets):
+        return []
+    out = [f'<g id="sheet" class="sheet" stroke-width="{sw:.4g}">']
+    for sx, sy, w, h in pattern.sheets:
+        P = tr(np.array([[sx, sy], [sx + w, sy], [sx + w, sy + h], [sx, sy + h]]))
+        out.append(f'<polygon points="{_fmt(P)}"/>')
+    out.append("</g>")
+    return out
+
+
+def _loop_groups(pattern: Pattern, tr, sw: float) -> tuple[list[str], int]:
+    """The ``outline`` and ``holes`` groups (one polygon per loop) and the number of holes."""
+    out = []
     n_holes = 0
     for gid, kind, cls in (("outline", "outer", "cut"), ("holes", "hole", "hole")):
         out.append(f'<g id="{gid}" class="{cls}" stroke-width="{sw:.4g}">')
@@ -90,18 +111,30 @@ def write_svg(path: str | os.PathLike, pattern: Pattern, units: str = "mm", titl
             for lp in ch.loops:
                 if lp.kind == kind:
                     n_holes += kind == "hole"
-                    out.append(f'<polygon data-chart="{ch.id}" points="{_fmt(tr(uv[lp.rows]))}"/>')
+                    out.append(f'<polygon data-chart="{ch.id}" points="{_fmt(tr(pattern.uv[lp.rows]))}"/>')
         out.append("</g>")
-    out.append(f'<g id="seams" stroke-width="{sw:.4g}">')
+    return out, n_holes
+
+
+def _seam_group(pattern: Pattern, tr, th: float, sw: float) -> list[str]:
+    """The ``seams`` group: one polyline per seam side and its label, turned along the seam."""
+    out = [f'<g id="seams" stroke-width="{sw:.4g}">']
     for s in pattern.seams:
         x, y = tr(s.label_point(0.8 * th))[0]
-        out.append(f'<polyline class="seam" data-label="{s.label}" points="{_fmt(tr(uv[s.rows]))}"/>')
+        out.append(f'<polyline class="seam" data-label="{s.label}" points="{_fmt(tr(pattern.uv[s.rows]))}"/>')
         out.append(f'<text class="label" x="{x:.9g}" y="{y:.9g}" font-size="{th:.4g}" '
                    f'transform="rotate({-_upright(s.angle):.4g} {x:.9g} {y:.9g})">{s.label}</text>')
     out.append("</g>")
-    out.append('<g id="annotation" class="note">')
+    return out
+
+
+def _annotation_group(pattern: Pattern, tr, th: float, units: str, title: str, H: float,
+                      margin: float) -> list[str]:
+    """The ``annotation`` group: chart ids with their distortion summaries, then the units and title lines."""
     from heatparam.formats.dxf import label_point
 
+    n_notes = 2 if title else 1
+    out = ['<g id="annotation" class="note">']
     for ch in pattern.charts:
         x, y = tr(label_point(pattern, ch))[0]
         out.append(f'<text x="{x:.9g}" y="{y:.9g}" font-size="{2 * th:.4g}" text-anchor="middle">C{ch.id}</text>')
@@ -114,12 +147,7 @@ def write_svg(path: str | os.PathLike, pattern: Pattern, units: str = "mm", titl
         y = H - (1.5 * (n_notes - 1 - i) + 1) * th
         out.append(f'<text x="{margin:.9g}" y="{y:.9g}" font-size="{th:.4g}">{escape(line)}</text>')
     out.append("</g>")
-    out.append("</svg>")
-    with open(path, "w", encoding="utf-8") as fh:
-        fh.write("\n".join(out) + "\n")
-    return {"format": "svg", "units": units, "width": svg_length(W, units), "height": svg_length(H, units),
-            "outlines": len(pattern.charts), "holes": n_holes, "seam_labels": len(pattern.seams),
-            "strain_map": bool(strain_map)}
+    return out
 
 
 def _upright(angle: float) -> float:

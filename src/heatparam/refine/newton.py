@@ -7,6 +7,17 @@ starts at 0.9 × the largest step for which no surface or scaffold triangle flip
 when an uncut step (≥ half the Newton step) lowers the surface energy by less than ``tol`` of it; the polish gives
 up after ``STALL_ITERS`` barrier-limited steps in a row that gain less.
 
+Stopping. The Newton decrement (the quadratic model's predicted decrease) far below ``tol`` means the start is
+already the minimum (e.g. the LSCM start of a developable surface, an isometry to round-off, where line searches
+find no descent); the threshold is far below tol so that a stiff scaffold holding boundary vertices back cannot
+fake it. A tiny decrease means convergence only if the Newton step was not cut short by the flip barrier and the
+scaffold was already at its lightest (a stiff scaffold slows boundary vertices down); cut-short steps usually
+recover once the scaffold is re-triangulated, so only a run of them stops.
+
+Scaffold weight. A stiff scaffold keeps boundaries apart while they move a lot, but it acts like a proximal term on
+boundary vertices (thin scaffold triangles): it is relaxed while Newton steps go through uncut and stiffened again
+after a cut step.
+
 The Hessian's sparsity pattern is built once (:class:`HessianPattern`); directions are solved with a reused
 factorization (:func:`newton_direction`); the line search is bounded by the flip barrier (``energy.max_step``).
 """
@@ -167,6 +178,34 @@ def _line_search(J: np.ndarray, D: np.ndarray, w_surf: np.ndarray, sy: _System, 
     return t, E1
 
 
+def _safe_direction(sy: _System, fac, backend: str):
+    """The Newton direction (dx, factor, refactorized?) of the system, or why it could not be had (a string): any
+    solver failure (PARDISO -4, CHOLMOD not positive definite) on degenerate faces keeps the last layout."""
+    try:
+        if not (np.isfinite(sy.H.data).all() and np.isfinite(sy.rhs).all()):
+            raise FloatingPointError("non-finite Hessian")
+        dx, fac, fresh = newton_direction(sy.H, sy.rhs, fac, backend)
+    except Exception as exc:  # noqa: BLE001 - the polish must keep its bijective layout whatever the solver does
+        return f"numerical failure ({type(exc).__name__}): the last bijective layout is kept"
+    if not np.isfinite(dx).all():
+        return "numerical failure (non-finite Newton step): the last bijective layout is kept"
+    return dx, fac, fresh
+
+
+def _barrier_step(x: np.ndarray, J: np.ndarray, dx: np.ndarray, F: np.ndarray, g: np.ndarray, w_surf: np.ndarray,
+                  sy: _System, guards: np.ndarray, gg: np.ndarray) -> tuple[float, np.ndarray] | None:
+    """(step length t, direction d (n,2)) along the Newton direction ``dx`` (2n,): at most 0.9 × the largest step
+    for which no surface, scaffold or guard triangle flips (:func:`max_step`), then :func:`_line_search`; None
+    when no step lowers the energy."""
+    n = len(x)
+    d = np.column_stack([dx[:n], dx[n:]])
+    D, Ds = jacobians(d, F, g), jacobians(np.vstack([d, np.zeros((4, 2))]), sy.sc.F, sy.gs)
+    tmax = 0.9 * min(max_step(J, D), max_step(sy.Js, Ds), max_step(jacobians(x, guards, gg),
+                                                                    jacobians(d, guards, gg)))
+    step = _line_search(J, D, w_surf, sy, Ds, tmax)
+    return None if step is None else (step[0], d)
+
+
 def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray], *,
            max_iters: int = 200, tol: float = 1e-6, backend: str = "auto", bar=None,
            guards: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
@@ -204,32 +243,21 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
             stop = f"scaffold failed: {exc}"
             break
         hist.append(Es)
-        try:
-            if not (np.isfinite(sy.H.data).all() and np.isfinite(sy.rhs).all()):
-                raise FloatingPointError("non-finite Hessian")
-            dx, fac, fresh = newton_direction(sy.H, sy.rhs, fac, backend)
-        except Exception as exc:  # noqa: BLE001 - any solver failure (PARDISO -4, CHOLMOD not PD) on degenerate faces
-            stop = f"numerical failure ({type(exc).__name__}): the last bijective layout is kept"
+        direction = _safe_direction(sy, fac, backend)
+        if isinstance(direction, str):
+            stop = direction
             break
-        if not np.isfinite(dx).all():
-            stop = "numerical failure (non-finite Newton step): the last bijective layout is kept"
-            break
+        dx, fac, fresh = direction
         refactorizations += fresh
-        # Newton decrement: the quadratic model's predicted decrease. Negligible (far below tol, so that a stiff
-        # scaffold holding boundary vertices back cannot fake it) means the start is already the minimum: e.g. the
-        # LSCM start of a developable surface, an isometry to round-off, where line searches find no descent
+        # a negligible Newton decrement: the start is already the minimum (module docstring, "Stopping")
         if 0.5 * float(sy.rhs @ dx) <= DECREMENT_TOL * tol * sy.E0:
             converged, stop = True, "converged"
             break
-        d = np.column_stack([dx[:n], dx[n:]])
-        D, Ds = jacobians(d, F, g), jacobians(np.vstack([d, np.zeros((4, 2))]), sy.sc.F, sy.gs)
-        tmax = 0.9 * min(max_step(J, D), max_step(sy.Js, Ds), max_step(jacobians(x, guards, gg),
-                                                                        jacobians(d, guards, gg)))
-        step = _line_search(J, D, w_surf, sy, Ds, tmax)
+        step = _barrier_step(x, J, dx, F, g, w_surf, sy, guards, gg)
         if step is None:
             stop = "no descent"
             break
-        t = step[0]
+        t, d = step
         x = x + t * d
         J = jacobians(x, F, g)
         Es1 = symmetric_dirichlet(J, w_surf)[0]
@@ -238,10 +266,7 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
             bar.update(1)
         Es = Es1
         if (hist[-1] - Es1) / hist[-1] < tol:
-            # a tiny decrease means convergence only if the Newton step was not cut short by the flip barrier and
-            # the scaffold was already at its lightest (a stiff scaffold slows boundary vertices down); cut-short
-            # steps usually recover once the scaffold is re-triangulated, so only a run of them stops
-            small += 1
+            small += 1  # converged only after an uncut step with the lightest scaffold ("Stopping")
             if t >= full_step and w_scaf > w_min:
                 w_scaf = w_min
                 continue
@@ -251,8 +276,7 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
                 break
         else:
             small = 0
-        # a stiff scaffold keeps boundaries apart while they move a lot, but it acts like a proximal term on
-        # boundary vertices (thin scaffold triangles): relax it while Newton steps go through uncut
+        # relax the scaffold while Newton steps go through uncut ("Scaffold weight")
         w_scaf = max(w_scaf / SCAFFOLD_ADAPT, w_min) if t >= full_step else min(w_scaf * SCAFFOLD_ADAPT, w_max)
     return x, {"iterations": it, "converged": converged, "stop": stop,
                "energy_start": float(hist[0] / 4 if hist else np.nan),
