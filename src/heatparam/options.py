@@ -253,5 +253,5 @@ def markdown_table() -> str:
     rows = ["| option | meaning | default |", "|---|---|---|"]
     for o in cli_options():
         spell = f"`{o.flag} {{{','.join(o.choices)}}}`" if o.kind == "choice" else f"`{o.flag} {o.metavar or ''}`"
-        rows.append(f"| {spell.replace(' `', '`')} | {help_text(o)} | `{o.default}` |")
+        rows.append(f"| {spell.replace(' `', '`').replace('|', chr(92) + '|')} | {help_text(o)} | `{o.default}` |")
     return "\n".join(rows)
