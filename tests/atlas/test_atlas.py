@@ -205,3 +205,22 @@ def test_deterministic_and_json_report():
     rep = json.loads(json.dumps(a.report))
     assert rep["totals"]["charts"] == len(rep["charts"]) == a.chart.max() + 1
     assert {"faces", "area", "iso_mean", "flips", "seam_length"} <= set(rep["charts"][0])
+
+
+def test_atlas_charts_skip_the_heat_stage_unless_asked(monkeypatch):
+    """Atlas charts start from LSCM (or Tutte) without the heat stage by default (it never won on them: §10);
+    mds_start='always' computes it. A disk with mds_start='never' says why in its report."""
+    import heatparam
+    from heatparam import pipeline
+
+    calls = []
+    real = pipeline.mds_map
+    monkeypatch.setattr(pipeline, "mds_map", lambda *a, **k: calls.append(1) or real(*a, **k))
+    V, F = datasets.capped_cylinder(n_theta=24, n_z=8)
+    r = heatparam.parameterize(V, F)
+    assert r.report["metrics"]["charts"] >= 2 and r.report["metrics"]["flips"] == 0 and not calls
+    heatparam.parameterize(V, F, mds_start="always")
+    assert calls
+    s = datasets.cylinder_patch(h=0.15)
+    rep = heatparam.parameterize(s.V, s.F, mds_start="never").report
+    assert rep["method"]["geodesics"].startswith("skipped: mds_start='never'") and rep["metrics"]["bijective"]

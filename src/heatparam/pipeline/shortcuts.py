@@ -49,10 +49,13 @@ def heat_stage_optional(opts) -> bool:
 def start_checks(surface: Surface, opts, prog: Progress, seamed: bool = False) -> StartCheck:
     """Whether the fill, geodesics and MDS can be skipped (cases (a), (b) and (c) of the module docstring;
     ``seamed``: the surface is the seams stage's cut-open mesh)."""
-    if opts.refine == "none" or opts.mds_start != "auto" or not heat_stage_optional(opts):
+    if opts.refine == "none" or opts.mds_start == "always" or not heat_stage_optional(opts):
         return StartCheck(None, None, None)
     with prog.stage("start check"):
         lscm = lscm_start(surface.V, surface.F, surface.conformal, surface.gradients())
+    if opts.mds_start == "never":
+        return StartCheck(lscm, "skipped: mds_start='never' (the refinement starts from LSCM, or Tutte when LSCM is "
+                                "not bijective)", None)
     if lscm.near_isometric:
         return StartCheck(lscm, (f"skipped: the LSCM layout is bijective and within {ISOMETRIC_START_EXCESS:g} of "
                                  f"an isometry (energy {lscm.energy:.7f}), so it starts the refinement "
