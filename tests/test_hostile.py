@@ -411,7 +411,7 @@ def test_ctrl_c_at_any_moment_is_clean(tmp_path):
     assert done.returncode == 0, done.stderr
     (tmp_path / "o.obj").unlink()
     existing = tmp_path / "kept.obj"
-    for k, d in enumerate(np.linspace(2 * startup, 0.9 * total, 6)):
+    for k, d in enumerate(np.linspace(2 * startup, 0.9 * total, 10)):
         out = tmp_path / f"o{k}.obj"
         cmd[-2] = str(out if k % 2 else existing)
         if k % 2 == 0:

@@ -331,7 +331,12 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from heatparam import interrupt
+
     try:
+        if args.command != "batch":  # the numerics (numpy, scipy, libigl) load here, an interrupt only noted
+            with interrupt.noted():
+                import heatparam.pipeline  # noqa: F401
         return COMMANDS[args.command](args)
     except HeatparamError as exc:
         print(f"heatparam: error: {to_cli_terms(str(exc))}", file=sys.stderr)

@@ -93,6 +93,21 @@ def deferred():
         raise
 
 
+@contextlib.contextmanager
+def noted():
+    """Imports of native extensions (libigl's nanobind module, OpenCascade): an interrupt while they run is only
+    noted — raised inside their C++ code it aborts the process ("terminate called after throwing an instance of
+    nanobind::python_error", with a traceback) — and raised once they are done."""
+    global _quiet
+    previous = _quiet
+    _quiet = True
+    try:
+        yield
+    finally:
+        _quiet = previous
+    check()
+
+
 def guarded_import(name: str):
     """``importlib.import_module(name)``, re-raising an interrupt the imported package swallowed."""
     try:
