@@ -159,6 +159,10 @@ def test_closed_mesh_becomes_an_atlas(tmp_path):
     assert np.array_equal(Vo, V) and np.array_equal(Fo, F) and len(UV) > len(V)
     m = json.loads(rep.read_text())["metrics"]
     assert m["charts"] > 1 and m["flips"] == 0 and m["overlapping_triangle_pairs"] == 0 and m["iso_mean"] <= 1.05
+    ev = tmp_path / "ev.json"  # judged again from the written file, as any tool's map
+    assert main(["evaluate", str(out), "--report", str(ev), "--quiet"]) == 0
+    e = json.loads(ev.read_text())["metrics"]
+    assert e["flips"] == 0 and e["boundary_crossings"] == 0 and e["iso_mean"] == pytest.approx(m["iso_mean"])
 
 
 def test_zero_area_faces_handled_and_reported(tmp_path):

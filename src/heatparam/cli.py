@@ -177,18 +177,6 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
-def _check_output(path: str, inputs: tuple[str, ...], suffix: str) -> Path:
-    p = Path(path)
-    if p.suffix.lower() != suffix:
-        raise HeatparamError(f"output {p} must end in {suffix}")
-    for i in inputs:
-        if Path(i).exists() and p.exists() and p.resolve() == Path(i).resolve():
-            raise HeatparamError(f"output {p} is the input file — choose another name (the input is never touched)")
-    if not p.parent.resolve().is_dir():
-        raise HeatparamError(f"cannot write {p}: folder {p.parent} does not exist")
-    return p
-
-
 def cmd_unwrap(args: argparse.Namespace) -> int:
     from heatparam.formats import load_mesh
     from heatparam.pipeline import parameterize
@@ -217,9 +205,10 @@ def cmd_unwrap(args: argparse.Namespace) -> int:
 
 def cmd_geodesics(args: argparse.Namespace) -> int:
     from heatparam.formats import load_mesh, save_npy
+    from heatparam.formats.outputs import plan_outputs
     from heatparam.heat import geodesic_distances
 
-    out = _check_output(args.output, (args.input,), ".npy")
+    out = plan_outputs([(args.output, {"npy"})], inputs=(args.input,))[0].path
     sources = []
     for s in args.source:
         try:
@@ -227,9 +216,6 @@ def cmd_geodesics(args: argparse.Namespace) -> int:
         except ValueError:
             raise HeatparamError(f"source {s!r} is not a vertex index (an integer)") from None
     V, F = load_mesh(args.input)
-    if any(not 0 <= s < len(V) for s in sources):
-        bad = next(s for s in sources if not 0 <= s < len(V))
-        raise HeatparamError(f"source vertex {bad} is out of range (the mesh has {len(V)} vertices)")
     D, warning = geodesic_distances(V, F, sources, args.time_step, args.t_coef, args.solver)
     if warning:
         print(f"heatparam: warning: {to_cli_terms(warning)}", file=sys.stderr)
@@ -247,11 +233,12 @@ def cmd_geodesics(args: argparse.Namespace) -> int:
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from heatparam import metrics
     from heatparam.formats import load_uv_obj, save_json
-    from heatparam.mesh import validate_mesh
+    from heatparam.formats.outputs import plan_outputs
+    from heatparam.mesh.validate import check_arrays
 
-    rep = _check_output(args.report, (args.input,), ".json") if args.report else None
+    rep = plan_outputs([(args.report, {"json"})], inputs=(args.input,))[0].path if args.report else None
     V, F, UV, FUV = load_uv_obj(args.input)
-    validate_mesh(V, F)
+    check_arrays(V, F)  # any mesh the metrics can judge: an atlas of a closed or multi-part mesh too
     if FUV.max() >= len(UV) or FUV.min() < 0:
         raise HeatparamError(f"{args.input}: texture coordinate index out of range")
     summary = metrics.summary(V, F, UV, FUV)

@@ -7,6 +7,7 @@ divergence). No Python loop runs per vertex.
 
 from __future__ import annotations
 
+import operator
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -84,19 +85,24 @@ def time_step(op: Operators, mode: str | float = "default", coef: float = 1.0, u
     if isinstance(mode, (int, float)) and not isinstance(mode, bool):
         if not mode > 0:
             raise ValueError(f"time step must be positive, got {mode}")
-        t = float(mode) / unit**2  # a time has units of length²
-        if t > (TIME_MAX_SPAN * diameter_bound(op)) ** 2:
-            from heatparam.errors import HeatparamError
-
-            raise HeatparamError(f"time_step={float(mode):g} is far too large for this surface (its heat spreads "
-                                 f"over more than {TIME_MAX_SPAN:g} × the surface's size in one step, so the "
-                                 "distances carry no information) — use time_step='default'")
-        return t
+        return float(mode) / unit**2  # a time has units of length²
     if mode == "default":
         return max(coef * op.mean_edge**2, min_time_step(op))
     if mode == "paper":
         return op.max_edge / unit  # Eq. 7: Δt = the longest edge's length in model units, taken as a time
     raise ValueError(f"time step must be one of {TIME_STEPS} or a positive number, got {mode!r}")
+
+
+def check_time_step(mode: str | float, diameter: float) -> None:
+    """Refuse an explicit time step (model units²) that spreads the heat over more than ``TIME_MAX_SPAN`` × the
+    surface's ``diameter`` (bounding-box diagonal, model units) in one step: its distances carry no information.
+    Checked up front, before any work (a shortcut may skip the heat stage, which would hide the mistake)."""
+    if not isinstance(mode, str) and mode > (TIME_MAX_SPAN * diameter) ** 2:
+        from heatparam.errors import HeatparamError
+
+        raise HeatparamError(f"time_step={mode:g} is far too large for this surface (its heat spreads over more than "
+                             f"{TIME_MAX_SPAN:g} × the surface's size in one step, so the distances carry no "
+                             "information) — use time_step='default'")
 
 
 def min_time_step(op: Operators) -> float:
@@ -356,24 +362,26 @@ def geodesic_distances(V: np.ndarray, F: np.ndarray, sources, time_step_mode: st
     1
     """
     from heatparam.errors import HeatparamError
-    from heatparam.mesh.frame import unit_frame
+    from heatparam.mesh.frame import frame_of
     from heatparam.mesh.topology import compact
     from heatparam.mesh.validate import check_arrays, validate_mesh
     from heatparam.operators import build_operators
 
     V, F = check_arrays(V, F)
-    used = np.zeros(len(V), dtype=bool)
-    used[F.ravel()] = True
-    frame = unit_frame(V[used])  # extreme sizes are computed near the unit box (exactly), then scaled back
-    if frame.exponent or frame.offset.any():
-        V = frame.to_unit(V)
-    info = validate_mesh(V, F, flatten=False)  # distances need no boundary: closed scans are fine here
-    src = np.asarray(sources)
-    if src.ndim != 1 or len(src) == 0 or not np.issubdtype(src.dtype, np.integer):
+    try:
+        ids = [operator.index(s) for s in np.atleast_1d(sources).tolist()]  # Python ints: any size, no overflow
+    except TypeError:
+        ids = []
+    if not ids:
         raise HeatparamError("sources must be a non-empty list of vertex indices")
-    bad = src[(src < 0) | (src >= len(V))]
-    if len(bad):
-        raise HeatparamError(f"source vertex {int(bad[0])} is out of range (the mesh has {len(V)} vertices)")
+    bad = [s for s in ids if not 0 <= s < len(V)]
+    if bad:
+        raise HeatparamError(f"source vertex {bad[0]} is out of range (the mesh has {len(V)} vertices)")
+    frame = frame_of(V, F)  # extreme sizes are computed near the unit box (exactly), then scaled back
+    V = frame.to_unit(V)
+    info = validate_mesh(V, F, flatten=False)  # distances need no boundary: closed scans are fine here
+    check_time_step(time_step_mode, info.diameter * frame.unit)
+    src = np.asarray(ids, dtype=np.int64)
     if not info.referenced[src].all():
         raise HeatparamError(f"source vertex {int(src[~info.referenced[src]][0])} is not used by any face")
     comp = compact(info.referenced)

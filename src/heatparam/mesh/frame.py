@@ -32,9 +32,14 @@ class UnitFrame(NamedTuple):
     def unit(self) -> float:
         return math.ldexp(1.0, self.exponent)
 
+    @property
+    def moves(self) -> bool:
+        """Whether the frame scales or moves anything (ordinary meshes: no)."""
+        return bool(self.exponent or self.offset.any())
+
     def to_unit(self, V: np.ndarray) -> np.ndarray:
-        """(n,3) model coordinates → internal ones."""
-        return np.ldexp(V - self.offset, -self.exponent)
+        """(n,3) model coordinates → internal ones (``V`` itself when the frame does not move it)."""
+        return np.ldexp(V - self.offset, -self.exponent) if self.moves else V
 
     def lengths_to_model(self, x):
         """Lengths (or 2D layouts, which carry no offset) → model units: × 2^exponent, exactly."""
@@ -46,6 +51,13 @@ class UnitFrame(NamedTuple):
             return math.ldexp(a, 2 * self.exponent)
         except OverflowError:
             return math.inf
+
+
+def frame_of(V: np.ndarray, F: np.ndarray) -> UnitFrame:
+    """:func:`unit_frame` of the vertices of (V (n,3) finite, F (m,3) in range) that faces use."""
+    used = np.zeros(len(V), dtype=bool)
+    used[F.ravel()] = True
+    return unit_frame(V[used])
 
 
 def unit_frame(V: np.ndarray) -> UnitFrame:

@@ -21,7 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from heatparam.errors import HeatparamError, TopologyError
+from heatparam.errors import TopologyError
+from heatparam.heat import check_time_step
 from heatparam.memory import require
 from heatparam.options import Options, make_options
 from heatparam.pipeline.heat_stage import FillSurface, decide_fill, mds_map
@@ -93,7 +94,7 @@ def _disk(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress) -> Result
     with prog.stage("validate"):
         surface, comp, info = Surface.validated(V, F)
     _check_memory(len(V), len(F), opts)
-    _check_time_step(opts, info.diameter * surface.frame.unit)
+    check_time_step(opts.time_step, info.diameter * surface.frame.unit)
     flat = flatten(surface, opts, prog)
     sr = seams_stage(surface, opts, prog, flat, flatten)
     if surface.frame.exponent:  # back to model units (exact: × a power of two)
@@ -125,17 +126,6 @@ def _atlas(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress, why: str
 def _to_model(flat: Flat, frame) -> Flat:
     """A flattening's layout in model units (its report's lengths are converted in ``report.build_report``)."""
     return flat._replace(uv=frame.lengths_to_model(flat.uv))
-
-
-def _check_time_step(opts: Options, diameter: float) -> None:
-    """An explicit time step is refused up front when it is absurd for the surface (used or not: a shortcut may
-    skip the heat stage, which would hide the mistake)."""
-    from heatparam.heat import TIME_MAX_SPAN
-
-    if not isinstance(opts.time_step, str) and opts.time_step > (TIME_MAX_SPAN * diameter) ** 2:
-        raise HeatparamError(f"time_step={opts.time_step:g} is far too large for this surface (its heat spreads over "
-                             f"more than {TIME_MAX_SPAN:g} × the surface's size in one step, so the distances carry "
-                             "no information) — use time_step='default'")
 
 
 def _check_memory(n: int, m: int, opts: Options) -> None:

@@ -8,7 +8,7 @@ import functools
 
 import numpy as np
 
-from heatparam.mesh.frame import UnitFrame, unit_frame
+from heatparam.mesh.frame import UnitFrame, frame_of
 from heatparam.mesh.topology import Compaction, compact
 from heatparam.mesh.validate import MeshInfo, check_arrays, validate_mesh
 
@@ -32,16 +32,12 @@ class Surface:
         unreferenced vertices: (surface, the compaction that maps input ids to the surface's, the input's
         MeshInfo in internal units)."""
         V, F = check_arrays(V, F)
-        used = np.zeros(len(V), dtype=bool)
-        used[F.ravel()] = True
-        frame = unit_frame(V[used])
-        info = validate_mesh(frame.to_unit(V) if frame.exponent or frame.offset.any() else V, F)
+        frame = frame_of(V, F)
+        info = validate_mesh(frame.to_unit(V), F)
         comp = compact(info.referenced)
         own = dataclasses.replace(info, referenced=np.ones(len(comp.keep), dtype=bool), warnings=[],
                                   boundary_loops=[comp.remap[lp] for lp in info.boundary_loops])
-        Vs = V[comp.keep]
-        return cls(frame.to_unit(Vs) if frame.exponent or frame.offset.any() else Vs, comp.faces(F), own,
-                   frame), comp, info
+        return cls(frame.to_unit(V[comp.keep]), comp.faces(F), own, frame), comp, info
 
     @functools.cache  # noqa: B019 - one Surface per flattening; the cache lives exactly as long as it
     def conformal(self) -> np.ndarray:
