@@ -54,11 +54,10 @@ def map_edges(V: np.ndarray, F: np.ndarray, vertex: np.ndarray | None = None) ->
     vertex : (n_uv,) int64, the input vertex of each uv row (``Result.uv_vertex``); None: rows at exactly the
         same 3D position are the same vertex.
     """
-    import igl
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    from heatparam import metrics
+    from heatparam.mesh.topology import boundary_edges, loops_outer_first
 
     F = np.asarray(F, dtype=np.int64)
     if vertex is None:
@@ -70,7 +69,7 @@ def map_edges(V: np.ndarray, F: np.ndarray, vertex: np.ndarray | None = None) ->
     Vw = np.zeros((nw, 3))
     Vw[welded] = V
     Fw = welded[F]
-    be = metrics.boundary_edges(F)  # (b,2) uv rows
+    be = boundary_edges(F)  # (b,2) uv rows
     # how many faces use each 3D edge: 1 = the surface's border, 2 = interior (a UV boundary edge there is a seam)
     E3 = np.sort(np.concatenate([Fw[:, [0, 1]], Fw[:, [1, 2]], Fw[:, [2, 0]]]), axis=1)
     keys, counts = np.unique(E3[:, 0] * nw + E3[:, 1], return_counts=True)
@@ -78,10 +77,9 @@ def map_edges(V: np.ndarray, F: np.ndarray, vertex: np.ndarray | None = None) ->
     used = counts[np.searchsorted(keys, bw[:, 0] * nw + bw[:, 1])]
     seam = used >= 2
     loop_of = np.full(nw, -1, dtype=np.int64)
-    loops = [np.asarray(lp, dtype=np.int64) for lp in igl.boundary_loop_all(Fw)] if (~seam).any() else []
-    lengths = [np.linalg.norm(Vw[lp] - Vw[np.roll(lp, -1)], axis=1).sum() for lp in loops]
-    for rank, i in enumerate(np.argsort(lengths)[::-1]):
-        loop_of[loops[i]] = rank
+    loops = loops_outer_first(Vw, Fw) if (~seam).any() else []
+    for rank, lp in enumerate(loops):
+        loop_of[lp] = rank
     outer = ~seam & (loop_of[bw[:, 0]] == 0)
     n_seams = 0
     if seam.any():

@@ -127,12 +127,6 @@ def _writer(fmt: str, V, F, result, ctx: dict):
     return lambda tmp: save_json(tmp, report) or {"format": "json"}
 
 
-def write_results(V, F, result, out: Path, rep: Path | None, prev: Path | None, quiet: bool,
-                  units: str | None = None) -> None:
-    """OBJ, report (optional) and preview (optional) of a pipeline ``Result``, all or nothing."""
-    write_outputs(V, F, result, plan([out], rep, prev), units=units or DEFAULT_UNITS, quiet=quiet)
-
-
 def unwrap_file(input, outputs, report=None, preview=None, options=None, quiet: bool = True,
                 units: str = DEFAULT_UNITS, sheet=None, strain_map: bool = False, fit_tolerance: float | None = None):
     """What ``heatparam unwrap`` does, as a function: check every output path, load ``input``, flatten it, write

@@ -176,13 +176,14 @@ def test_shared_closed_meshes_default_atlas(name):
 
 
 def test_preview_png(tmp_path):
-    from heatparam.atlas.preview import save_atlas_preview, seam_edges
+    """The atlas in the one preview (``render.save_preview`` with ``chart``): charts coloured, seams drawn."""
+    from heatparam.render import map_edges, save_preview
 
     V, F = datasets.cone_with_base(n_theta=16, n_s=6, rings=2)
     res = atlas(V, F)
-    assert len(seam_edges(F, res.Fuv)) > 0
+    assert len(map_edges(V[res.uv_vertex], res.Fuv, res.uv_vertex).seams) > 0
     out = tmp_path / "p.png"
-    save_atlas_preview(out, V, F, res, title="cone")
+    save_preview(out, V[res.uv_vertex], res.Fuv, res.uv, title="cone", chart=res.chart, vertex=res.uv_vertex)
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 

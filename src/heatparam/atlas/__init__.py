@@ -208,11 +208,9 @@ def seam_length(V: np.ndarray, F: np.ndarray, Fuv: np.ndarray) -> float:
     from heatparam.atlas.repair import half_edge_opposites
 
     opp = half_edge_opposites(F)
-    h = np.flatnonzero(opp > np.arange(len(opp)))
-    o = opp[h]
+    cut = _cut_half_edges(F, Fuv, opp)
+    h = np.flatnonzero(cut & (opp > np.arange(len(opp))))
     fa, ja = h // 3, h % 3
-    fb, jb = o // 3, o % 3
-    same = (Fuv[fa, ja] == Fuv[fb, (jb + 1) % 3]) & (Fuv[fa, (ja + 1) % 3] == Fuv[fb, jb])
     a, b = F[fa, ja], F[fa, (ja + 1) % 3]
     # edges of 3+ faces (or of inconsistent orientation) are cut by the repair: count them too
     a_all, b_all = F.ravel(), F[:, [1, 2, 0]].ravel()
@@ -220,11 +218,23 @@ def seam_length(V: np.ndarray, F: np.ndarray, Fuv: np.ndarray) -> float:
     key = np.minimum(a_all, b_all) * n + np.maximum(a_all, b_all)
     uk, first, cnt = np.unique(key, return_index=True, return_counts=True)
     multi = first[(cnt >= 2)]
-    welded_keys = np.minimum(a, b) * n + np.maximum(a, b)
+    hw = np.flatnonzero(opp > np.arange(len(opp)))  # the welded (manifold, oriented) edges, each once
+    welded_keys = np.minimum(a_all[hw], b_all[hw]) * n + np.maximum(a_all[hw], b_all[hw])
     multi = multi[~np.isin(key[multi], welded_keys)]
-    L = float(np.linalg.norm(V[b[~same]] - V[a[~same]], axis=1).sum())
+    L = float(np.linalg.norm(V[b] - V[a], axis=1).sum())
     L += float(np.linalg.norm(V[b_all[multi]] - V[a_all[multi]], axis=1).sum())
     return L
+
+
+def _cut_half_edges(F: np.ndarray, Fuv: np.ndarray, opp: np.ndarray) -> np.ndarray:
+    """(3m,) bool: half-edge ``3 f + j`` has an opposite (``repair.half_edge_opposites``) and the two sides of their
+    edge use different UV rows (a seam of the atlas)."""
+    h = np.flatnonzero(opp >= 0)
+    o = opp[h]
+    fa, ja, fb, jb = h // 3, h % 3, o // 3, o % 3
+    cut = np.zeros(len(opp), dtype=bool)
+    cut[h] = ~((Fuv[fa, ja] == Fuv[fb, (jb + 1) % 3]) & (Fuv[fa, (ja + 1) % 3] == Fuv[fb, jb]))
+    return cut
 
 
 def _report(V, F, uv, Fuv, uv_vertex, chart_of, charts, rep, comp_reports, pinfo, bound, max_distortion,
@@ -276,16 +286,10 @@ def _report(V, F, uv, Fuv, uv_vertex, chart_of, charts, rep, comp_reports, pinfo
 def _per_chart_seams(V, F, Fuv, chart_of, per) -> None:
     from heatparam.atlas.repair import half_edge_opposites
 
-    opp = half_edge_opposites(F)
+    cut = _cut_half_edges(F, Fuv, half_edge_opposites(F))
     h = np.arange(3 * len(F))
-    o = opp
     fa, ja = h // 3, h % 3
-    a, b = F[fa, ja], F[fa, (ja + 1) % 3]
-    seam = np.zeros(len(h), dtype=bool)
-    ok = o >= 0
-    fb, jb = o[ok] // 3, o[ok] % 3
-    seam[ok] = ~((Fuv[fa[ok], ja[ok]] == Fuv[fb, (jb + 1) % 3]) & (Fuv[fa[ok], (ja[ok] + 1) % 3] == Fuv[fb, jb]))
-    L = np.linalg.norm(V[b] - V[a], axis=1) * seam
+    L = np.linalg.norm(V[F[fa, (ja + 1) % 3]] - V[F[fa, ja]], axis=1) * cut
     s = np.bincount(chart_of[fa], weights=L, minlength=len(per))
     for i, p in enumerate(per):
         p["seam_length"] = float(s[i])
@@ -299,12 +303,10 @@ def atlas_result(V: np.ndarray, F: np.ndarray, opts, why: str, prog=None):
     """:func:`atlas` of (V, F) with the ``Options`` ``opts`` (their atlas fields and the pipeline's for each chart),
     as a ``pipeline.Result``: ``uv``, ``Fuv``, ``uv_vertex``, ``chart`` and a report with the same top-level keys as
     a single flattening's (``metrics`` over the whole atlas, ``method.atlas`` per chart and totals)."""
-    import platform
     from dataclasses import asdict
 
-    from heatparam import __version__, metrics
-    from heatparam.memory import peak_rss_bytes
-    from heatparam.pipeline.report import Result
+    from heatparam import metrics
+    from heatparam.pipeline.report import Result, envelope
 
     o = asdict(opts)
     pipeline_options = {k: v for k, v in o.items() if k not in ATLAS_FIELDS and k != "seed"}
@@ -320,25 +322,15 @@ def atlas_result(V: np.ndarray, F: np.ndarray, opts, why: str, prog=None):
                    uv_degenerate_faces=t["uv_degenerate_faces"], seam_length=t["seam_length"])
     warnings = [f"an atlas of {t['charts']} chart(s) ({why}); the OBJ's vt rows split along the seams",
                 *res.report.get("warnings", [])]
-    if summary["flips"] or summary["boundary_crossings"]:
-        warnings.append(f"the map is not bijective: {summary['flips']} flipped triangles, "
-                        f"{summary['boundary_crossings']} boundary crossings")
     referenced = np.zeros(len(V), dtype=bool)
     referenced[F.ravel()] = True
-    report = {
-        "heatparam_version": __version__,
-        "parameters": o,
-        "method": {"atlas": res.report, "why": why, "seams": {"mode": opts.seams, "used": True,
-                                                              "reason": "charts of an atlas"}},
-        "mesh": {"vertices": len(V), "faces": len(F), "unreferenced_vertices": int((~referenced).sum()),
-                 "components": len(res.report["components"]), "repair": res.report["repair"]},
-        "metrics": summary,
-        "timings_s": {"atlas": round(float(res.report["seconds"]["total"]), 4)},
-        "peak_rss_mb": round(peak_rss_bytes() / 2**20, 1),
-        "machine": {"python": platform.python_version(), "platform": platform.platform()},
-        "warnings": warnings,
-    }
+    method = {"atlas": res.report, "why": why, "seams": {"mode": opts.seams, "used": True,
+                                                         "reason": "charts of an atlas"}}
+    mesh_facts = {"vertices": len(V), "faces": len(F), "unreferenced_vertices": int((~referenced).sum()),
+                  "components": len(res.report["components"]), "repair": res.report["repair"]}
+    report = envelope(o, method, mesh_facts, summary, {"atlas": round(float(res.report["seconds"]["total"]), 4)},
+                      warnings)
     if prog is not None:
-        for w in warnings:
+        for w in report["warnings"]:
             prog.warn(w)
     return Result(res.uv, report, None, res.Fuv, res.uv_vertex, res.chart)

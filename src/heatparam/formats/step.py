@@ -46,6 +46,7 @@ from scipy.interpolate import BSpline
 from scipy.sparse.csgraph import connected_components
 
 from heatparam.errors import HeatparamError
+from heatparam.formats.outputs import file_mode
 from heatparam.mesh.planar import polygon_area
 from heatparam.mesh.topology import boundary_loops
 
@@ -316,9 +317,7 @@ def _write_shape(shape, path: Path, unit: str, name: str | None = None) -> None:
             hdr.SetName(TCollection_HAsciiString(shown.name))
             if w.Write(tmp) != IFSelect_RetDone:
                 raise HeatparamError(f"cannot write {path}: the STEP writer failed")
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp's 0600 -> what a plain open() would have given
+        os.chmod(tmp, file_mode())  # mkstemp's 0600 -> what a plain open() would have given
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):

@@ -96,20 +96,28 @@ def build_report(opts, flat: Flat, seams: dict, without_seams: dict | None, mesh
         flat = flat._replace(method=_method_in_model_units(frame, flat.method))
         if without_seams is not None:
             without_seams = {**without_seams, "metrics": _model_units(frame, without_seams["metrics"], {}, {})[0]}
-    if summary["flips"] or summary["boundary_crossings"]:
-        warnings = [*warnings, f"the map is not bijective: {summary['flips']} flipped triangles, "
-                               f"{summary['boundary_crossings']} boundary crossings"]
     method = {**flat.method, "seams": seams}
     if without_seams is not None:
         method["without_seams"] = without_seams
+    parameters = {**asdict(opts), "time_step_value": frame.areas_to_model(layout.t) if layout else None,
+                  "landmarks_used": layout.k if layout else None}
+    return envelope(parameters, method, mesh_facts, summary, prog.timings, warnings)
+
+
+def envelope(parameters: dict, method: dict, mesh_facts: dict, summary: dict, timings: dict, warnings: list[str]
+             ) -> dict:
+    """A report's top level, the same for one flattening and an atlas: version, parameters, method, mesh facts,
+    metrics, timings, peak memory, machine, and the warnings (a last one when the map is not bijective)."""
+    if summary["flips"] or summary["boundary_crossings"]:
+        warnings = [*warnings, f"the map is not bijective: {summary['flips']} flipped triangles, "
+                               f"{summary['boundary_crossings']} boundary crossings"]
     return {
         "heatparam_version": __version__,
-        "parameters": {**asdict(opts), "time_step_value": frame.areas_to_model(layout.t) if layout else None,
-                       "landmarks_used": layout.k if layout else None},
+        "parameters": parameters,
         "method": method,
         "mesh": mesh_facts,
         "metrics": summary,
-        "timings_s": prog.timings,
+        "timings_s": timings,
         "peak_rss_mb": round(peak_rss_bytes() / 2**20, 1),
         "machine": {"python": platform.python_version(), "platform": platform.platform()},
         "warnings": warnings,
