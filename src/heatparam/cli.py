@@ -178,9 +178,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def cmd_unwrap(args: argparse.Namespace) -> int:
-    from heatparam.formats import load_mesh
-    from heatparam.pipeline import parameterize
-    from heatparam.unwrap import plan, write_outputs
+    from heatparam.unwrap import plan, unwrap_planned
 
     plans = plan(args.output, args.report, args.preview, inputs=(args.input,))
     sheet = None
@@ -194,12 +192,8 @@ def cmd_unwrap(args: argparse.Namespace) -> int:
         if used and not formats & set(where):
             print(f"heatparam: warning: {flag} applies to {' and '.join('.' + w for w in where)} outputs only "
                   "(none requested)", file=sys.stderr)
-    V, F = load_mesh(args.input)
     opts = make_options(progress=not args.quiet, **{o.name: getattr(args, o.name) for o in cli_options()})
-    result = parameterize(V, F, opts)
-    result.report["input"] = str(args.input)
-    write_outputs(V, F, result, plans, units=args.units, sheet=sheet, strain_map=args.strain_map, quiet=args.quiet,
-                  fit_tolerance=args.fit_tolerance)
+    unwrap_planned(args.input, plans, opts, args.quiet, args.units, sheet, args.strain_map, args.fit_tolerance)
     return 0
 
 

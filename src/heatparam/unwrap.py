@@ -146,13 +146,19 @@ def unwrap_file(input, outputs, report=None, preview=None, options=None, quiet: 
     The pipeline's ``Result`` (``uv, report``), its report's ``input`` set to ``str(input)``. Raises
     ``HeatparamError`` (one line) for bad input; nothing is written then.
     """
+    outputs = [outputs] if isinstance(outputs, (str, Path)) else list(outputs)
+    plans = plan([str(o) for o in outputs], str(report) if report else None, str(preview) if preview else None,
+                 inputs=(str(input),))
+    return unwrap_planned(input, plans, options, quiet, units, sheet, strain_map, fit_tolerance)
+
+
+def unwrap_planned(input, plans, options=None, quiet: bool = True, units: str = DEFAULT_UNITS, sheet=None,
+                   strain_map: bool = False, fit_tolerance: float | None = None):
+    """:func:`unwrap_file` with its outputs already checked (``plans`` from :func:`plan`)."""
     from heatparam.formats import load_mesh
     from heatparam.options import make_options
     from heatparam.pipeline import parameterize
 
-    outputs = [outputs] if isinstance(outputs, (str, Path)) else list(outputs)
-    plans = plan([str(o) for o in outputs], str(report) if report else None, str(preview) if preview else None,
-                 inputs=(str(input),))
     V, F = load_mesh(input)
     result = parameterize(V, F, make_options(options))
     result.report["input"] = str(input)
