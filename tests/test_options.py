@@ -85,3 +85,11 @@ def test_help_imports_no_numerics():
             f"print(sorted(m for m in {heavy} if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_cli_units_are_the_formats_units():
+    """``cli.UNITS`` repeats the unit names so that --help loads no numerics: the same names as formats.units."""
+    from heatparam.cli import UNITS
+    from heatparam.formats.units import UNITS as FORMAT_UNITS
+
+    assert tuple(UNITS) == tuple(FORMAT_UNITS)
