@@ -265,6 +265,10 @@ def test_segment_crossings_match_brute_force():
             P = np.cumsum(steps, axis=0)
             E = np.column_stack([np.arange(n), (np.arange(n) + 1) % n])
         assert M.segment_crossings(P, E) == brute_crossings(P, E), trial
+        pairs = M.crossing_pairs(P, E)  # the pairs themselves: each one crosses, i < j, no pair twice
+        assert len(np.unique(pairs, axis=0)) == len(pairs) and (pairs[:, 0] < pairs[:, 1]).all()
+        for i, j in pairs[:50]:
+            assert brute_crossings(P, E[[i, j]]) == 1, (trial, i, j)
 
 
 # ---------------------------------------------------------------------------------------------------------

@@ -38,6 +38,7 @@ from heatparam.mesh.topology import DEGENERATE_AREA_REL, boundary_edges
 __all__ = [
     "PerFaceDistortion",
     "boundary_crossings",
+    "crossing_pairs",
     "distortion",
     "face_jacobian_singular_values",
     "per_face_distortion",
@@ -417,23 +418,30 @@ def _candidate_pairs(A: np.ndarray, B: np.ndarray, ids: np.ndarray, h: float, de
 
 def segment_crossings(P: np.ndarray, E: np.ndarray) -> int:
     """Pairs of segments ``P[E[i]]`` that properly cross or overlap collinearly (shared indices skipped)."""
+    return len(crossing_pairs(P, E))
+
+
+def crossing_pairs(P: np.ndarray, E: np.ndarray) -> np.ndarray:
+    """(k,2) int64 rows (i, j), i < j: the segments ``P[E[i]]``, ``P[E[j]]`` cross properly or overlap collinearly
+    (pairs sharing an index skipped; :func:`segment_crossings` counts them)."""
     P = np.asarray(P, dtype=np.float64)
     E = np.asarray(E, dtype=np.int64)
     ne = len(E)
+    none = np.zeros((0, 2), np.int64)
     if ne < 2:
-        return 0
+        return none
     A, B = P[E[:, 0]], P[E[:, 1]]
     length = np.linalg.norm(B - A, axis=1)
     extent = float(np.max(np.maximum(A, B).max(axis=0) - np.minimum(A, B).min(axis=0)))
     if extent == 0.0:
-        return 0
+        return none
     # cell ~ median edge length, but large enough that sum(len)/h stays O(#edges) and cells per axis bounded
     h = max(float(np.median(length)), float(length.mean()) / 4.0, extent / 4.0e6)
     chunks: list[np.ndarray] = []
     _candidate_pairs(A, B, np.arange(ne, dtype=np.int64), h, 0, chunks)
     cand = np.concatenate(chunks) if chunks else np.zeros((0, 2), np.int64)
     if len(cand) == 0:
-        return 0
+        return none
     i = np.minimum(cand[:, 0], cand[:, 1])
     j = np.maximum(cand[:, 0], cand[:, 1])
     key = _unique_int(i[i != j] * ne + j[i != j])
@@ -444,7 +452,7 @@ def segment_crossings(P: np.ndarray, E: np.ndarray) -> int:
     p, q, r, s = A[i], B[i], A[j], B[j]
     o1, o2 = np.sign(_orient(p, q, r)), np.sign(_orient(p, q, s))
     o3, o4 = np.sign(_orient(r, s, p)), np.sign(_orient(r, s, q))
-    proper = (o1 * o2 < 0) & (o3 * o4 < 0)
+    hit = (o1 * o2 < 0) & (o3 * o4 < 0)
     col = (o1 == 0) & (o2 == 0) & (o3 == 0) & (o4 == 0)
     if col.any():
         p, q, r, s = p[col], q[col], r[col], s[col]
@@ -454,10 +462,8 @@ def segment_crossings(P: np.ndarray, E: np.ndarray) -> int:
         pa, qa, ra, sa = p[rng, ax], q[rng, ax], r[rng, ax], s[rng, ax]
         lo = np.maximum(np.minimum(pa, qa), np.minimum(ra, sa))
         hi = np.minimum(np.maximum(pa, qa), np.maximum(ra, sa))
-        overlap = int((lo < hi).sum())
-    else:
-        overlap = 0
-    return int(proper.sum()) + overlap
+        hit[np.flatnonzero(col)[lo < hi]] = True
+    return np.column_stack([i[hit], j[hit]])
 
 
 def boundary_crossings(uv: np.ndarray, F: np.ndarray) -> int:

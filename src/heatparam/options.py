@@ -111,8 +111,9 @@ OPTIONS: tuple[Option, ...] = (
            "(developable parts), (b) on meshes of >= {FOLD_CHECK_MIN_VERTICES} vertices, when the MDS layout of a "
            "1/8 coarse mesh folds beyond repair (curved scans): the same map, faster, and the report's "
            "stress_rel_rms is then null; never when fill, geodesics, landmarks or stress is set explicitly. "
-           "always = compute them as a start candidate anyway; never = skip them (LSCM or Tutte starts; the charts "
-           "of an atlas use it when this is auto: BENCHMARKS §10, the same atlases 26-36% faster)",
+           "always = compute them as a start candidate anyway (in an atlas: every chart through the pipeline "
+           "instead of the charts' joint polish); never = skip them (LSCM or Tutte starts; an atlas's charts are "
+           "polished together from LSCM unless this is always: BENCHMARKS §10)",
            MDS_START_MODES, flag="--mds-start"),
     Option("seams", "auto", "choice", "cut holes open to the border along the shortest surface paths: auto = when "
            "the map without seams is more than {SEAM_TRY_EXCESS:.0%} from an isometry, keep the cut one if it is "

@@ -15,7 +15,7 @@ import numpy as np
 from heatparam.atlas.overlap import count_overlaps, uv_degenerate_faces
 from heatparam.atlas.pack import pack_charts
 from heatparam.atlas.repair import repair
-from heatparam.atlas.segment import Topology, chart_mesh, grow, quick_flatten, segment
+from heatparam.atlas.segment import Topology, chart_mesh, face_iso, flatten_charts, grow, quick_flatten, segment
 from heatparam.errors import HeatparamError
 
 __all__ = ["ATLAS_FIELDS", "AtlasResult", "DEFAULT_MAX_DISTORTION", "TINY_COMPONENT_FACES", "atlas", "atlas_result"]
@@ -98,6 +98,8 @@ def atlas(V: np.ndarray, F: np.ndarray, *, max_distortion: float | None = None, 
         raise HeatparamError(f"max distortion must be > 1 (1 = isometry), got {max_distortion}")
     bound = DEFAULT_MAX_DISTORTION if max_distortion is None else float(max_distortion)
     opts = {"seed": seed, **pipeline_options}
+    if opts.get("mds_start", "auto") == "auto":  # charts are small and clean: the heat stage never won a start on
+        opts["mds_start"] = "never"  # them (measured on cow and 3holes: the same atlases, 26-36% faster; §10)
     rep = repair(V, F)
     charts: list[dict] = []  # each: faces (input rows), Fl, vert (input vertex per local row), uv, info
     comp_reports = []
@@ -157,8 +159,18 @@ def _segmented_part(comp, ci: int, bound: float, max_charts: int | None, seed: i
     appended to ``charts``. Returns (charts made, the segmentation's stats)."""
     topo = Topology.build(comp.V, comp.F)
     seg = segment(topo, bound, max_charts=max_charts, seed=seed)
-    todo = [(np.flatnonzero(seg.chart == c), seg.glued) for c in range(int(seg.chart.max()) + 1)]
-    made = 0
+    groups = [np.flatnonzero(seg.chart == c) for c in range(int(seg.chart.max()) + 1)]
+    limit = None if seg.stats["capped"] else bound
+    if opts.get("mds_start") == "always":  # the paper's route asked for: every chart through the pipeline
+        done, rest = [], list(range(len(groups)))
+        seg.stats["joint_polish"] = {"used": False, "reason": "mds_start='always': each chart through the pipeline"}
+    else:
+        done, rest, seg.stats["joint_polish"] = _polish_together(topo, groups, seg.glued, opts, limit)
+    for faces, Fl, vert, uv, info in done:
+        charts.append({"faces": comp.faces[faces], "Fl": Fl, "vert": comp.vertex[vert], "uv": uv, "component": ci,
+                       "info": info})
+    made = len(done)
+    todo = [(groups[i], seg.glued) for i in rest]
     while todo:
         faces, glued = todo.pop()
         Vl, Fl, vert = chart_mesh(topo, faces, glued)
@@ -181,6 +193,54 @@ def _segmented_part(comp, ci: int, bound: float, max_charts: int | None, seed: i
                        "component": ci, "info": info})
         made += 1
     return made, seg.stats
+
+
+def _polish_together(topo, groups: list[np.ndarray], glued: np.ndarray, opts: dict, limit: float | None):
+    """Every chart whose quick flattening (LSCM) is bijective, polished together (``refine.charts``): (the charts
+    done as (faces, Fl, vert, uv, info) tuples, the indices of the others, the polish's report)."""
+    from heatparam.refine.charts import refine_charts
+
+    fl = flatten_charts(topo, groups, glued)
+    good = np.flatnonzero(fl.ok(np.inf))
+    if not len(good):
+        return [], list(range(len(groups))), {"charts": 0}
+    new = np.full(len(groups), -1, dtype=np.int64)
+    new[good] = np.arange(len(good))
+    fgroup = np.repeat(np.arange(len(groups)), np.diff(fl.face_start))
+    rows = np.flatnonzero(new[fl.vgroup] >= 0)
+    loc = np.full(len(fl.Vl), -1, dtype=np.int64)
+    loc[rows] = np.arange(len(rows))
+    Fs = loc[fl.Fl[new[fgroup] >= 0]]
+    vg = new[fl.vgroup[rows]]
+    x = fl.uv[rows]
+    if opts.get("refine", "sd") == "none":
+        rep = {"charts": len(good), "used": False, "reason": "refine none: the LSCM layouts are kept"}
+    else:
+        x, rep = refine_charts(fl.Vl[rows], Fs, x, vg, len(good), max_iters=int(opts.get("refine_iters", 200)),
+                               tol=float(opts.get("refine_tol", 1e-6)), backend=opts.get("solver", "auto"))
+    fi, area, dj = face_iso(fl.Vl[rows], Fs, x)
+    fg = vg[Fs[:, 0]]
+    ok_face = dj > 0
+    w = area * ok_face
+    iso = np.bincount(fg, weights=w * np.where(ok_face, fi, 0.0), minlength=len(good)) / np.maximum(
+        np.bincount(fg, weights=w, minlength=len(good)), 1e-300)
+    flips = np.bincount(fg, weights=~ok_face, minlength=len(good)).astype(np.int64)
+    crossing = rep.get("boundary_crossings", 0) > 0  # the scaffold rules it out; checked, not assumed
+    done, rest = [], [i for i in range(len(groups)) if new[i] < 0]
+    for j, i in enumerate(good):
+        if crossing or flips[j] or (limit is not None and iso[j] > limit):
+            rest.append(int(i))
+            continue
+        r = rows[vg == j]
+        lr = np.full(len(fl.Vl), -1, dtype=np.int64)
+        lr[r] = np.arange(len(r))
+        Fl = lr[fl.Fl[fl.face_start[i]:fl.face_start[i + 1]]]
+        info = {"iso_mean": float(iso[j]), "flips": 0, "bijective": True, "boundary_crossings": 0,
+                "method": "lscm + joint polish"}
+        done.append((groups[i], Fl, fl.vert[r], x[loc[r]], info))
+    rep = {k: rep[k] for k in ("charts", "iterations", "converged", "stop", "energy_start", "energy_end", "seconds",
+                               "used", "reason") if k in rep}
+    return done, sorted(rest), rep
 
 
 def _halves(topo, faces: np.ndarray, glued: np.ndarray, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -310,8 +370,6 @@ def atlas_result(V: np.ndarray, F: np.ndarray, opts, why: str, prog=None):
 
     o = asdict(opts)
     pipeline_options = {k: v for k, v in o.items() if k not in ATLAS_FIELDS and k != "seed"}
-    if opts.mds_start == "auto":  # charts are small and clean: the heat stage never won a start on them (measured
-        pipeline_options["mds_start"] = "never"  # on cow and 3holes: the same atlases, 26-36% faster; §10)
     res = atlas(V, F, max_distortion=opts.max_distortion or None, max_charts=opts.max_charts or None,
                 pack=opts.pack, padding=opts.padding, resolution=opts.resolution, seed=opts.seed,
                 **pipeline_options)
