@@ -15,7 +15,16 @@ import numpy as np
 from heatparam.atlas.overlap import count_overlaps, uv_degenerate_faces
 from heatparam.atlas.pack import pack_charts
 from heatparam.atlas.repair import repair
-from heatparam.atlas.segment import Topology, chart_mesh, face_iso, flatten_charts, grow, quick_flatten, segment
+from heatparam.atlas.segment import (
+    Topology,
+    chart_mesh,
+    face_iso,
+    flatten_charts,
+    grow,
+    proxy_bound,
+    quick_flatten,
+    segment,
+)
 from heatparam.errors import HeatparamError
 
 __all__ = ["ATLAS_FIELDS", "AtlasResult", "DEFAULT_MAX_DISTORTION", "TINY_COMPONENT_FACES", "atlas", "atlas_result"]
@@ -160,7 +169,8 @@ def _segmented_part(comp, ci: int, bound: float, max_charts: int | None, seed: i
     topo = Topology.build(comp.V, comp.F)
     seg = segment(topo, bound, max_charts=max_charts, seed=seed)
     groups = [np.flatnonzero(seg.chart == c) for c in range(int(seg.chart.max()) + 1)]
-    limit = None if seg.stats["capped"] else bound
+    # without the polish the charts keep their LSCM layouts: held to the segmentation's own (proxy) bound
+    limit = None if seg.stats["capped"] else proxy_bound(bound) if opts.get("refine") == "none" else bound
     if opts.get("mds_start") == "always":  # the paper's route asked for: every chart through the pipeline
         done, rest = [], list(range(len(groups)))
         seg.stats["joint_polish"] = {"used": False, "reason": "mds_start='always': each chart through the pipeline"}

@@ -208,11 +208,13 @@ def _barrier_step(x: np.ndarray, J: np.ndarray, dx: np.ndarray, F: np.ndarray, g
 
 def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray], *,
            max_iters: int = 200, tol: float = 1e-6, backend: str = "auto", bar=None,
-           guards: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
+           guards: np.ndarray | None = None, excess_tol: float = 0.0) -> tuple[np.ndarray, dict]:
     """Minimize the symmetric Dirichlet energy Σ A_f Ψ(J_f) from a bijective layout ``uv`` (n,2), keeping it bijective
     (the scheme: module docstring). g (m,3,2): hat gradients of the rest triangles; area (m,): their areas; loops:
     boundary loops, outer first; guards (k,3): extra triangles, positive in ``uv``, without energy but kept
-    positive like the others (``multilevel.coarse_to_fine``). Returns the layout (n,2) and a JSON-able report.
+    positive like the others (``multilevel.coarse_to_fine``); excess_tol: an iteration that lowers the energy by less
+    than this fraction of its excess over an isometry (Ψ - 4) also counts as small (0: off; ``refine.charts``).
+    Returns the layout (n,2) and a JSON-able report.
     """
     t0 = time.perf_counter()
     n = len(uv)
@@ -265,7 +267,7 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
             bar.set_postfix_str(f"energy {Es1 / 4:.5f} (1 = isometry)", refresh=False)
             bar.update(1)
         Es = Es1
-        if (hist[-1] - Es1) / hist[-1] < tol:
+        if (hist[-1] - Es1) / hist[-1] < tol or (excess_tol > 0 and hist[-1] - Es1 < excess_tol * (Es1 - 4.0)):
             small += 1  # converged only after an uncut step with the lightest scaffold ("Stopping")
             if t >= full_step and w_scaf > w_min:
                 w_scaf = w_min
