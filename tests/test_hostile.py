@@ -425,5 +425,6 @@ def test_ctrl_c_at_any_moment_is_clean(tmp_path):
             assert out.exists() if k % 2 else existing.read_text() != "previous content\n"
             continue
         assert p.returncode in (130, -signal.SIGINT), (d, p.returncode, err)
-        assert not out.exists() and existing.read_text() == "previous content\n", (d, p.returncode, err)
+        target = out if k % 2 else existing  # this run's output: absent, or the old content kept
+        assert (not target.exists() if k % 2 else target.read_text() == "previous content\n"), (d, p.returncode, err)
         assert not list(tmp_path.glob(".*.tmp"))
