@@ -232,3 +232,16 @@ def test_lscm_matches_libigl(name):
     assert np.abs(ours - ref).max() <= 1e-8 * np.ptp(ref, axis=0).max()
     for backend in ("scipy", "cholespy"):
         assert np.allclose(mds.lscm(s.V, s.F, pins, pin_uv, backend=backend), ours, atol=1e-9)
+
+
+def test_tutte_of_a_strip_with_every_vertex_on_the_border():
+    """A strip of triangles has no interior vertex: nothing to solve, the circle is the embedding (a chart of the
+    dragon scan's atlas failed in the factorization of an empty system)."""
+    from heatparam.layout.tutte import build_disk, tutte
+    from heatparam.mesh.planar import signed_areas
+
+    x = np.arange(6, dtype=float)
+    V = np.vstack([np.column_stack([x, np.zeros(6), np.zeros(6)]), np.column_stack([x, np.ones(6), x ** 2 / 10])])
+    F = np.array([f for i in range(5) for f in ([i, i + 1, i + 7], [i, i + 7, i + 6])], dtype=np.int64)
+    uv = tutte(V, build_disk(V, F))
+    assert (signed_areas(uv[: len(V)], F) > 0).all()

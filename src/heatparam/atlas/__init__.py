@@ -111,15 +111,27 @@ def atlas(V: np.ndarray, F: np.ndarray, *, max_distortion: float | None = None, 
         opts["mds_start"] = "never"  # them (measured on cow and 3holes: the same atlases, 26-36% faster; §10)
     rep = repair(V, F)
     charts: list[dict] = []  # each: faces (input rows), Fl, vert (input vertex per local row), uv, info
-    comp_reports = []
+    comp_reports: list[dict] = [{} for _ in rep.components]
+    tiny = [ci for ci, c in enumerate(rep.components) if len(c.F) < TINY_COMPONENT_FACES]
     for ci, comp in enumerate(rep.components):
+        if len(tiny) > 1 and ci in tiny:
+            continue  # below, all together
         whole = _whole_part(comp, ci, opts) if max_distortion is None else None
         if whole is not None:
             charts.append(whole)
-            comp_reports.append({"faces": int(len(comp.F)), "charts": 1, "segmented": False})
+            comp_reports[ci] = {"faces": int(len(comp.F)), "charts": 1, "segmented": False}
             continue
         made, stats = _segmented_part(comp, ci, bound, max_charts, seed, opts, charts)
-        comp_reports.append({"faces": int(len(comp.F)), "charts": made, "segmented": True, **stats})
+        comp_reports[ci] = {"faces": int(len(comp.F)), "charts": made, "segmented": True, **stats}
+    if len(tiny) > 1:  # the fins and crumbs of a scan: segmented and polished as one part (one solve, not one each)
+        union, owner = _union([rep.components[ci] for ci in tiny], tiny)
+        start = len(charts)
+        _, stats = _segmented_part(union, owner, bound, None, seed, opts, charts)
+        made = np.bincount([c["component"] for c in charts[start:]], minlength=len(rep.components))
+        for ci in tiny:
+            comp_reports[ci] = {"faces": int(len(rep.components[ci].F)), "charts": int(made[ci]), "segmented": True,
+                                "with_the_tiny_components": True}
+        comp_reports[tiny[0]]["tiny_components_together"] = {"components": len(tiny), **stats}
     t_flat = time.perf_counter() - t0
     placed, pinfo = pack_charts([c["uv"] for c in charts], [c["Fl"] for c in charts], pack, padding, resolution)
     m = len(F)
@@ -161,11 +173,25 @@ def _whole_part(comp, ci: int, opts: dict) -> dict | None:
                                                    "bijective": True, "method": "pipeline (whole part)"}}
 
 
-def _segmented_part(comp, ci: int, bound: float, max_charts: int | None, seed: int, opts: dict,
+def _union(parts: list, ids: list[int]):
+    """Several components as one (a :class:`repair.Component` of their disjoint union) and the component id of
+    each of its faces."""
+    from heatparam.atlas.repair import Component
+
+    offs = np.cumsum([0] + [len(c.V) for c in parts])
+    F = np.vstack([c.F + o for c, o in zip(parts, offs[:-1], strict=True)])
+    comp = Component(np.vstack([c.V for c in parts]), F, np.concatenate([c.faces for c in parts]),
+                     np.concatenate([c.vertex for c in parts]))
+    return comp, np.repeat(np.asarray(ids, dtype=np.int64), [len(c.F) for c in parts])
+
+
+def _segmented_part(comp, ci, bound: float, max_charts: int | None, seed: int, opts: dict,
                     charts: list[dict]) -> tuple[int, dict]:
-    """Segment a component (``segment.segment``), flatten every chart with the pipeline, split a chart that is not
-    bijective or exceeds the bound in two (the paper's future-work rule) down to single faces; the charts are
-    appended to ``charts``. Returns (charts made, the segmentation's stats)."""
+    """Segment a component (``segment.segment``), polish the charts together, flatten a chart that fails with the
+    pipeline, split a chart that is still not bijective or exceeds the bound in two (the paper's future-work rule)
+    down to single faces; the charts are appended to ``charts``. ``ci``: the component's id, or (m_c,) the id of
+    each face (a union of components: :func:`_union`). Returns (charts made, the segmentation's stats)."""
+    owner = ci if isinstance(ci, np.ndarray) else np.full(len(comp.F), ci, dtype=np.int64)
     topo = Topology.build(comp.V, comp.F)
     seg = segment(topo, bound, max_charts=max_charts, seed=seed)
     groups = [np.flatnonzero(seg.chart == c) for c in range(int(seg.chart.max()) + 1)]
@@ -177,8 +203,8 @@ def _segmented_part(comp, ci: int, bound: float, max_charts: int | None, seed: i
     else:
         done, rest, seg.stats["joint_polish"] = _polish_together(topo, groups, seg.glued, opts, limit)
     for faces, Fl, vert, uv, info in done:
-        charts.append({"faces": comp.faces[faces], "Fl": Fl, "vert": comp.vertex[vert], "uv": uv, "component": ci,
-                       "info": info})
+        charts.append({"faces": comp.faces[faces], "Fl": Fl, "vert": comp.vertex[vert], "uv": uv,
+                       "component": int(owner[faces[0]]), "info": info})
     made = len(done)
     todo = [(groups[i], seg.glued) for i in rest]
     while todo:
@@ -200,7 +226,7 @@ def _segmented_part(comp, ci: int, bound: float, max_charts: int | None, seed: i
         if uv is None:
             raise HeatparamError(f"a chart of {len(faces)} faces could not be flattened: {info.get('error')}")
         charts.append({"faces": comp.faces[faces], "Fl": Fl, "vert": comp.vertex[vert], "uv": uv,
-                       "component": ci, "info": info})
+                       "component": int(owner[faces[0]]), "info": info})
         made += 1
     return made, seg.stats
 

@@ -56,7 +56,8 @@ def tutte(V: np.ndarray, disk: Disk, backend: str = "auto") -> np.ndarray:
     free = np.setdiff1d(np.arange(N), b)
     uv = np.zeros((N, 2))
     uv[b] = bc
-    Lff = L[free][:, free].tocsc()
-    rhs = -(L[free][:, b] @ bc)
-    uv[free] = Factor(Lff, backend).solve(rhs)
+    if len(free):  # a strip whose every vertex is on the border has none: the circle alone is the embedding
+        Lff = L[free][:, free].tocsc()
+        rhs = -(L[free][:, b] @ bc)
+        uv[free] = Factor(Lff, backend).solve(rhs)
     return uv
