@@ -172,8 +172,9 @@ def build_pattern(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray,
     iso, a3 = _true_scale_iso(V, F, uv, Fuv)
     charts: list[Chart] = []
     seam_edges = []  # (3D key, chart, row a, row b) for each UV boundary half-edge on an interior 3D edge
-    for c in np.unique(chart).tolist():
-        faces = np.flatnonzero(chart == c)
+    order = np.argsort(chart, kind="stable")  # each chart's faces, in order, without a pass over all per chart
+    ids, starts = np.unique(chart[order], return_index=True)
+    for c, faces in zip(ids.tolist(), np.split(order, starts[1:]), strict=True):
         loops = _chart_loops(c, Fuv[faces], V, uv, uv_vertex, interior, seam_edges)
         rows_c = np.unique(Fuv[faces])
         good = np.isfinite(iso[faces])
@@ -234,7 +235,8 @@ def _chart_loops(c: int, Fc: np.ndarray, V: np.ndarray, uv: np.ndarray, uv_verte
         L3 = float(np.linalg.norm(V[uv_vertex[rows]] - V[uv_vertex[nxt]], axis=1).sum())
         loops.append(Loop(rows.astype(np.int64), "hole", L3, _closed_length(P), polygon_area(P)))
         k = np.sort(np.stack([uv_vertex[rows], uv_vertex[nxt]], axis=1), axis=1) @ np.array([len(V), 1])
-        for i in np.flatnonzero(np.isin(k, interior)):
+        pos = np.minimum(np.searchsorted(interior, k), len(interior) - 1)  # interior is sorted
+        for i in np.flatnonzero(interior[pos] == k) if len(interior) else []:
             seam_edges.append((int(k[i]), c, int(rows[i]), int(nxt[i])))
     if not loops:
         raise HeatparamError(f"pattern: chart {c} has no boundary (a closed surface cannot be laid flat)")
