@@ -29,7 +29,7 @@ from heatparam.atlas.overlap import count_overlaps, uv_degenerate_faces
 from heatparam.mesh import cut_open
 from heatparam.metrics import distortion
 
-CLOSED = ["cow.off", "stanford-bunny.obj", "3holes.off"]
+CLOSED = ["cow.off", "stanford-bunny.obj", "3holes.off", "stanford-dragon-res3.ply"]
 OPEN = ["camelhead.off", "beetle.off", "halftunnel.off"]
 GENERATED = ["closed_cube", "capped_cylinder", "cone_with_base", "torus"]
 

@@ -175,6 +175,23 @@ def test_shared_closed_meshes_default_atlas(name):
     assert all(c["flips"] == 0 for c in res.report["charts"])
 
 
+@pytest.mark.slow
+def test_messy_scan_dragon_becomes_an_atlas():
+    """A real reconstruction as shipped (Stanford dragon, VRIP, crudely decimated): 2094 non-manifold edges, 16 loose
+    points, 1473 pieces after the lossless repair, most of them 2-face fins. It failed in a chart's Tutte embedding
+    (a strip with no interior vertex) and took 79 s; the fins are now charted together."""
+    from heatparam.formats import load_mesh
+
+    V, F = load_mesh(shared_mesh("stanford-dragon-res3.ply"))
+    res = atlas(V, F)
+    _check_atlas(V, F, res, 1.05)
+    rep = res.report
+    assert rep["repair"]["non_manifold_or_inconsistent_edges_cut"] > 0 and rep["repair"]["loose_points"] == 16
+    assert len(rep["tiny_components"]) > 1000 and len(rep["components"]) == rep["repair"]["components"]
+    assert sum(c["charts"] for c in rep["components"]) == rep["totals"]["charts"] == res.chart.max() + 1
+    assert any(w.startswith("16 unreferenced vertices") for w in rep["warnings"])
+
+
 def test_preview_png(tmp_path):
     """The atlas in the one preview (``render.save_preview`` with ``chart``): charts coloured, seams drawn."""
     from heatparam.render import map_edges, save_preview
