@@ -17,8 +17,8 @@ from heatparam.atlas.pack import pack_charts
 from heatparam.atlas.repair import repair
 from heatparam.atlas.segment import (
     Topology,
+    chart_iso,
     chart_mesh,
-    face_iso,
     flatten_charts,
     grow,
     proxy_bound,
@@ -254,26 +254,17 @@ def _polish_together(topo, groups: list[np.ndarray], glued: np.ndarray, opts: di
     else:
         x, rep = refine_charts(fl.Vl[rows], Fs, x, vg, len(good), max_iters=int(opts.get("refine_iters", 200)),
                                tol=float(opts.get("refine_tol", 1e-6)), backend=opts.get("solver", "auto"))
-    fi, area, dj = face_iso(fl.Vl[rows], Fs, x)
-    fg = vg[Fs[:, 0]]
-    ok_face = dj > 0
-    w = area * ok_face
-    iso = np.bincount(fg, weights=w * np.where(ok_face, fi, 0.0), minlength=len(good)) / np.maximum(
-        np.bincount(fg, weights=w, minlength=len(good)), 1e-300)
-    flips = np.bincount(fg, weights=~ok_face, minlength=len(good)).astype(np.int64)
+    iso, flips = chart_iso(fl.Vl[rows], Fs, x, vg[Fs[:, 0]], len(good))
     crossing = rep.get("boundary_crossings", 0) > 0  # the scaffold rules it out; checked, not assumed
     done, rest = [], [i for i in range(len(groups)) if new[i] < 0]
     for j, i in enumerate(good):
         if crossing or flips[j] or (limit is not None and iso[j] > limit):
             rest.append(int(i))
             continue
-        r = rows[vg == j]
-        lr = np.full(len(fl.Vl), -1, dtype=np.int64)
-        lr[r] = np.arange(len(r))
-        Fl = lr[fl.Fl[fl.face_start[i]:fl.face_start[i + 1]]]
+        _, Fl, vert, _ = fl.chart(i)
         info = {"iso_mean": float(iso[j]), "flips": 0, "bijective": True, "boundary_crossings": 0,
                 "method": "lscm + joint polish"}
-        done.append((groups[i], Fl, fl.vert[r], x[loc[r]], info))
+        done.append((groups[i], Fl, vert, x[loc[np.flatnonzero(fl.vgroup == i)]], info))
     rep = {k: rep[k] for k in ("charts", "iterations", "converged", "stop", "energy_start", "energy_end", "seconds",
                                "used", "reason") if k in rep}
     return done, sorted(rest), rep

@@ -31,8 +31,8 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from heatparam.atlas.repair import half_edge_opposites
 from heatparam.errors import HeatparamError
 
-__all__ = ["DEFAULT_CONE", "DEFAULT_CREASE", "Flattenings", "Segmentation", "Topology", "chart_mesh", "face_iso",
-           "flatten_charts", "proxy_bound", "quick_flatten", "segment"]
+__all__ = ["DEFAULT_CONE", "DEFAULT_CREASE", "Flattenings", "Segmentation", "Topology", "chart_iso", "chart_mesh",
+           "face_iso", "flatten_charts", "proxy_bound", "quick_flatten", "segment"]
 
 DEFAULT_CONE = 60.0  # degrees: normal-cone half angle of a grown region
 DEFAULT_CREASE = 60.0  # degrees: dihedral angle above which an edge is a crease (never crossed while growing)
@@ -162,6 +162,18 @@ def face_iso(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> tuple[np.ndarray, 
     return iso, area, det
 
 
+def chart_iso(V: np.ndarray, F: np.ndarray, uv: np.ndarray, fgroup: np.ndarray, k: int
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Per chart (``fgroup`` (m,) of each face, k charts): the area-weighted mean of :func:`face_iso` over its
+    positive faces (inf when it has none) and its count of flipped or collapsed faces; (k,), (k,)."""
+    fi, area, det = face_iso(V, F, uv)
+    good = det > 0
+    w = area * good
+    wsum = np.bincount(fgroup, weights=w, minlength=k)
+    mean = np.bincount(fgroup, weights=w * np.where(good, fi, 0.0), minlength=k) / np.maximum(wsum, 1e-300)
+    return np.where(wsum > 0, mean, np.inf), np.bincount(fgroup, weights=~good, minlength=k).astype(np.int64)
+
+
 @dataclass
 class Flattenings:
     """Quick flattenings of k charts at once (:func:`flatten_charts`), over the union of their meshes.
@@ -252,14 +264,9 @@ def flatten_components(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, k: in
             uv[vgroup == i] = uv_i[vgroup == i]
         sel = solve[fgroup]
     _true_area(Vl, Fl, uv, fgroup, vgroup, k)
-    fi, area, det = face_iso(Vl, Fl, uv)
-    good = det > 0
-    w = area * good
-    wsum = np.bincount(fgroup, weights=w, minlength=k)
-    mean = np.bincount(fgroup, weights=w * np.where(good, fi, 0.0), minlength=k) / np.maximum(wsum, 1e-300)
+    mean, flips = chart_iso(Vl, Fl, uv, fgroup, k)
     finite = np.bincount(fgroup, weights=~np.isfinite(uv[Fl]).all(axis=(1, 2)), minlength=k) == 0
-    iso = np.where(solve & finite & (wsum > 0), mean, np.inf)
-    flips = np.bincount(fgroup, weights=~good, minlength=k).astype(np.int64)
+    iso = np.where(solve & finite, mean, np.inf)
     check = solve & finite & (flips == 0) & (iso <= bound)
     cross[check] = _crossings_per_chart(uv, Fl, a, b, bd, vgroup, check, k)
     return uv, iso, flips, cross, disk, vgroup
