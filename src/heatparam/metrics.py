@@ -44,6 +44,7 @@ __all__ = [
     "per_face_distortion",
     "stress",
     "summary",
+    "true_scale_iso",
     "weld_uv",
 ]
 
@@ -163,6 +164,16 @@ def face_jacobian_singular_values(
     sigma1[degen] = np.inf
     sigma2[degen] = 0.0
     return sigma1, sigma2, signed_uv, 0.5 * nn
+
+
+def true_scale_iso(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per face: max(sigma1, 1/sigma2) of the map as it is (no global rescaling; inf on flipped, collapsed and
+    degenerate faces), the 3D area and the signed UV area (:func:`face_jacobian_singular_values`); (m,) each."""
+    s1, s2, sa, a3 = face_jacobian_singular_values(V, F, uv, Fuv)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        iso = np.where((sa > 0) & (s2 > 0), np.maximum(s1, 1.0 / s2), np.inf)
+    return iso, a3, sa
 
 
 class PerFaceDistortion(NamedTuple):

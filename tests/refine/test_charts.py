@@ -7,14 +7,14 @@ import numpy as np
 
 from heatparam import datasets
 from heatparam.atlas.overlap import count_overlaps
-from heatparam.atlas.segment import face_iso
 from heatparam.layout.conformal import conformal_layout
 from heatparam.mesh import boundary_loops
+from heatparam.metrics import true_scale_iso
 from heatparam.refine.charts import arrange, refine_charts
 
 
 def _mean_iso(V, F, uv):
-    fi, area, det = face_iso(V, F, uv)
+    fi, area, det = true_scale_iso(V, F, uv)
     assert (det > 0).all()
     return float((fi * area).sum() / area.sum())
 

@@ -147,8 +147,8 @@ def atlas(V: np.ndarray, F: np.ndarray, *, max_distortion: float | None = None, 
         off += len(placed[i])
     uv = np.concatenate(uvs)
     uv_vertex = np.concatenate(verts).astype(np.int64)
-    report = _report(V, F, uv, Fuv, uv_vertex, chart_of, charts, rep, comp_reports, pinfo, bound, max_distortion,
-                     max_charts)
+    report = _report(V, F, uv, Fuv, uv_vertex, chart_of, charts, rep, comp_reports, tiny, pinfo, bound,
+                     max_distortion, max_charts)
     report["seconds"] = {"charts": t_flat, "total": time.perf_counter() - t0}
     return AtlasResult(uv=uv, Fuv=Fuv, uv_vertex=uv_vertex, chart=chart_of, report=report)
 
@@ -256,15 +256,17 @@ def _polish_together(topo, groups: list[np.ndarray], glued: np.ndarray, opts: di
                                tol=float(opts.get("refine_tol", 1e-6)), backend=opts.get("solver", "auto"))
     iso, flips = chart_iso(fl.Vl[rows], Fs, x, vg[Fs[:, 0]], len(good))
     crossing = rep.get("boundary_crossings", 0) > 0  # the scaffold rules it out; checked, not assumed
+    polished = fl.uv.copy()
+    polished[rows] = x
     done, rest = [], [i for i in range(len(groups)) if new[i] < 0]
     for j, i in enumerate(good):
         if crossing or flips[j] or (limit is not None and iso[j] > limit):
             rest.append(int(i))
             continue
-        _, Fl, vert, _ = fl.chart(i)
+        _, Fl, vert, uv = fl.chart(i, polished)
         info = {"iso_mean": float(iso[j]), "flips": 0, "bijective": True, "boundary_crossings": 0,
                 "method": "lscm + joint polish"}
-        done.append((groups[i], Fl, vert, x[loc[np.flatnonzero(fl.vgroup == i)]], info))
+        done.append((groups[i], Fl, vert, uv, info))
     rep = {k: rep[k] for k in ("charts", "iterations", "converged", "stop", "energy_start", "energy_end", "seconds",
                                "used", "reason") if k in rep}
     return done, sorted(rest), rep
@@ -324,7 +326,7 @@ def _cut_half_edges(F: np.ndarray, Fuv: np.ndarray, opp: np.ndarray) -> np.ndarr
     return cut
 
 
-def _report(V, F, uv, Fuv, uv_vertex, chart_of, charts, rep, comp_reports, pinfo, bound, max_distortion,
+def _report(V, F, uv, Fuv, uv_vertex, chart_of, charts, rep, comp_reports, tiny, pinfo, bound, max_distortion,
             max_charts) -> dict:
     from heatparam.metrics import distortion
 
@@ -354,7 +356,6 @@ def _report(V, F, uv, Fuv, uv_vertex, chart_of, charts, rep, comp_reports, pinfo
         "area": area,
         "uv_scale": scale,
     }
-    tiny = [i for i, c in enumerate(rep.components) if len(c.F) < TINY_COMPONENT_FACES]
     return {
         "parameters": {"max_distortion": max_distortion, "bound_used": bound, "max_charts": max_charts,
                        "pack": pinfo["mode"]},

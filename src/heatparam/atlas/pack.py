@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from heatparam.mesh.planar import shelf_pack
+
 __all__ = ["min_area_rotation", "pack_charts"]
 
 
@@ -32,24 +34,6 @@ def min_area_rotation(P: np.ndarray) -> np.ndarray:
         if area < best - 1e-12 * abs(best if np.isfinite(best) else 1):
             best, R_best = area, R if ext[0] >= ext[1] else np.array([[0, 1], [-1, 0]]) @ R
     return R_best
-
-
-def _shelf(sizes: np.ndarray, width: float, gap: float) -> tuple[np.ndarray, float, float]:
-    """Lower-left corners of boxes (w,h) on shelves of the given width, tallest first: (k,2), used w, used h."""
-    order = np.lexsort((-sizes[:, 0], -sizes[:, 1]))
-    pos = np.zeros((len(sizes), 2))
-    x = y = shelf_h = 0.0
-    used_w = 0.0
-    for i in order:
-        w, h = sizes[i]
-        if x > 0 and x + w > width:
-            y += shelf_h + gap
-            x = shelf_h = 0.0
-        pos[i] = (x, y)
-        x += w + gap
-        used_w = max(used_w, x - gap)
-        shelf_h = max(shelf_h, h)
-    return pos, used_w, y + shelf_h
 
 
 def pack_charts(uvs: list[np.ndarray], Fs: list[np.ndarray], mode: str = "scale", padding: float = 4.0,
@@ -87,7 +71,7 @@ def pack_charts(uvs: list[np.ndarray], Fs: list[np.ndarray], mode: str = "scale"
         best = None
         for f in (0.8, 0.9, 1.0, 1.1, 1.25, 1.4, 1.6, 2.0):  # shelf widths: keep the smallest rectangle
             width = max(float(np.sqrt(total) * f), float(sizes[:, 0].max()))
-            cand = _shelf(sizes, width, g)
+            cand = shelf_pack(sizes, width, g)
             if best is None or cand[1] * cand[2] < best[1] * best[2]:
                 best = cand
         pos, w, h = best
@@ -102,7 +86,7 @@ def pack_charts(uvs: list[np.ndarray], Fs: list[np.ndarray], mode: str = "scale"
         inner = 1.0 - g
         if (sizes * s).max() > inner:
             return False, None
-        pos, w, h = _shelf(sizes * s, inner, g)
+        pos, w, h = shelf_pack(sizes * s, inner, g)
         return h <= inner, pos
 
     hi = (1.0 - g) / max(float(sizes.max()), 1e-300)

@@ -32,7 +32,7 @@ from heatparam.atlas.repair import half_edge_opposites
 from heatparam.errors import HeatparamError
 
 __all__ = ["DEFAULT_CONE", "DEFAULT_CREASE", "Flattenings", "Segmentation", "Topology", "chart_iso", "chart_mesh",
-           "face_iso", "flatten_charts", "proxy_bound", "quick_flatten", "segment"]
+           "flatten_charts", "proxy_bound", "quick_flatten", "segment"]
 
 DEFAULT_CONE = 60.0  # degrees: normal-cone half angle of a grown region
 DEFAULT_CREASE = 60.0  # degrees: dihedral angle above which an edge is a crease (never crossed while growing)
@@ -114,16 +114,12 @@ def chart_mesh(topo: Topology, faces: np.ndarray, glued: np.ndarray, group: np.n
     o = topo.opp[h]
     ok = (o >= 0) & glued[h]
     a = np.repeat(np.arange(k), 3)  # the row of each half-edge
-    if group is None:
-        loc = np.full(len(F), -1, dtype=np.int64)
-        loc[faces] = np.arange(k)
-        b = np.where(ok, loc[np.maximum(o, 0) // 3], -1)
-    else:  # a face may sit in several groups: rows found by (group, face)
-        key = group * len(F) + faces
-        order = np.argsort(key, kind="stable")
-        q = np.repeat(group, 3) * len(F) + np.maximum(o, 0) // 3
-        pos = np.minimum(np.searchsorted(key[order], q), k - 1)
-        b = np.where(ok & (key[order][pos] == q), order[pos], -1)
+    group = np.zeros(k, dtype=np.int64) if group is None else group
+    key = group * len(F) + faces  # rows found by (group, face): a face may sit in several groups
+    order = np.argsort(key, kind="stable")
+    q = np.repeat(group, 3) * len(F) + np.maximum(o, 0) // 3
+    pos = np.minimum(np.searchsorted(key[order], q), k - 1)
+    b = np.where(ok & (key[order][pos] == q), order[pos], -1)
     ok &= b >= 0
     j, kk = h[ok] % 3, o[ok] % 3
     a, b = a[ok], b[ok]
@@ -137,41 +133,18 @@ def chart_mesh(topo: Topology, faces: np.ndarray, glued: np.ndarray, group: np.n
     return topo.V[vert], Fl, vert
 
 
-def face_iso(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per face of the layout ``uv`` (n,2) of (V (n,3), F (m,3)): isometric distortion max(s1, 1/s2) at the given
-    scale (m,), 3D area (m,) and UV det J (m,) (non-positive: flipped or collapsed)."""
-    e1, e2 = V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]
-    l1 = np.linalg.norm(e1, axis=1)
-    x2 = np.einsum("ij,ij->i", e1, e2) / np.maximum(l1, 1e-300)
-    y2 = np.sqrt(np.maximum(np.einsum("ij,ij->i", e2, e2) - x2 ** 2, 0))
-    area = 0.5 * l1 * y2
-    u1, u2 = uv[F[:, 1]] - uv[F[:, 0]], uv[F[:, 2]] - uv[F[:, 0]]
-    det = u1[:, 0] * u2[:, 1] - u1[:, 1] * u2[:, 0]
-    # J maps the local frame (e1 along x) to uv: J = [u1 u2] @ inv([[l1, x2],[0, y2]]); singular values in closed
-    # form: s1,2 = (sqrt(|J|² + 2 det) ± sqrt(|J|² - 2 det)) / 2
-    inv11 = 1 / np.maximum(l1, 1e-300)
-    inv22 = 1 / np.maximum(y2, 1e-300)
-    inv12 = -x2 * inv11 * inv22
-    c0 = u1 * inv11[:, None]
-    c1 = u1 * inv12[:, None] + u2 * inv22[:, None]
-    fro = (c0 ** 2).sum(axis=1) + (c1 ** 2).sum(axis=1)
-    dj = np.abs(c0[:, 0] * c1[:, 1] - c0[:, 1] * c1[:, 0])
-    p, q = np.sqrt(np.maximum(fro + 2 * dj, 0)), np.sqrt(np.maximum(fro - 2 * dj, 0))
-    s1, s2 = 0.5 * (p + q), 0.5 * (p - q)
-    iso = np.maximum(s1, 1 / np.maximum(s2, 1e-300))
-    return iso, area, det
-
-
 def chart_iso(V: np.ndarray, F: np.ndarray, uv: np.ndarray, fgroup: np.ndarray, k: int
               ) -> tuple[np.ndarray, np.ndarray]:
-    """Per chart (``fgroup`` (m,) of each face, k charts): the area-weighted mean of :func:`face_iso` over its
-    positive faces (inf when it has none) and its count of flipped or collapsed faces; (k,), (k,)."""
-    fi, area, det = face_iso(V, F, uv)
-    good = det > 0
-    w = area * good
+    """Per chart (``fgroup`` (m,) of each face, k charts): the area-weighted mean of ``metrics.true_scale_iso``
+    over its positive faces (inf when it has none) and its count of flipped or collapsed faces; (k,), (k,)."""
+    from heatparam.metrics import true_scale_iso
+
+    fi, area, sa = true_scale_iso(V, F, uv)
+    good = np.isfinite(fi)
+    w = np.where(good, area, 0.0)
     wsum = np.bincount(fgroup, weights=w, minlength=k)
     mean = np.bincount(fgroup, weights=w * np.where(good, fi, 0.0), minlength=k) / np.maximum(wsum, 1e-300)
-    return np.where(wsum > 0, mean, np.inf), np.bincount(fgroup, weights=~good, minlength=k).astype(np.int64)
+    return np.where(wsum > 0, mean, np.inf), np.bincount(fgroup, weights=sa <= 0, minlength=k).astype(np.int64)
 
 
 @dataclass
@@ -199,13 +172,16 @@ class Flattenings:
         """(k,) bool: a disk whose flattening is bijective and within ``bound``."""
         return self.disk & (self.flips == 0) & (self.crossings == 0) & (self.iso <= bound)
 
-    def chart(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Chart i on its own: (Vl (n_i,3), Fl (m_i,3) local, vert (n_i,), uv (n_i,2))."""
-        rows = np.flatnonzero(self.vgroup == i)
-        loc = np.full(len(self.vgroup), -1, dtype=np.int64)
-        loc[rows] = np.arange(len(rows))
-        Fi = loc[self.Fl[self.face_start[i]:self.face_start[i + 1]]]
-        return self.Vl[rows], Fi, self.vert[rows], self.uv[rows]
+    def chart(self, i: int, uv: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Chart i on its own: (Vl (n_i,3), Fl (m_i,3) local, vert (n_i,), its rows of ``uv`` (nl,2), default the
+        LSCM layouts). The rows of every chart are found by one sort, on the first call."""
+        if not hasattr(self, "_rows"):
+            order = np.argsort(self.vgroup, kind="stable")
+            self._rows = (order, np.searchsorted(self.vgroup[order], np.arange(len(self.face_start))))
+        order, start = self._rows
+        rows = order[start[i]:start[i + 1]]  # ascending: the sort is stable
+        Fi = np.searchsorted(rows, self.Fl[self.face_start[i]:self.face_start[i + 1]])
+        return self.Vl[rows], Fi, self.vert[rows], (self.uv if uv is None else uv)[rows]
 
 
 def flatten_charts(topo: Topology, charts: list[np.ndarray], glued: np.ndarray, bound: float = np.inf
@@ -529,8 +505,10 @@ def _stretches(topo: Topology, hs: np.ndarray) -> list[np.ndarray]:
     ends, eid = ends[o], eid[o]
     verts, start, cnt = np.unique(ends, return_index=True, return_counts=True)
     join = (cnt == 2) & ~(np.abs(topo.defect[verts]) > CONE_DEFECT)
-    if (cnt <= 2).all() and (~join).sum() == 2 and _walk_length(a, b) == n:  # one simple path (the common case)
-        return [hs]
+    if (cnt <= 2).all() and (~join).sum() == 2:  # one simple path (the common case) needs no graph
+        path, heads = _chain(a, b)
+        if heads == 1 and len(path) == n:
+            return [hs]
     lab = _chain_labels(n, eid[start[join]].tolist(), eid[start[join] + 1].tolist())
     out = []
     for i in range(int(lab.max()) + 1):
@@ -564,29 +542,24 @@ def _chain_labels(n: int, r: list[int], c: list[int]) -> np.ndarray:
     return np.array([ids.setdefault(t, len(ids)) for t in roots], dtype=np.int64)
 
 
-def _walk_length(a: np.ndarray, b: np.ndarray) -> int:
-    """Edges reached following a → b from the start of a chain of directed edges (no start: 0)."""
-    nxt = dict(zip(a.tolist(), b.tolist(), strict=False))
-    heads = set(nxt) - set(b.tolist())
-    if len(heads) != 1:
-        return 0
-    v, steps = heads.pop(), 0
-    while v in nxt and steps <= len(a):
-        v, steps = nxt[v], steps + 1
-    return steps
+def _chain(a: np.ndarray, b: np.ndarray) -> tuple[list[int], int]:
+    """The directed edges a[i] → b[i] in path order from the smallest head (a start that is no edge's end; edge 0
+    when there is none), at most one pass; and the number of heads."""
+    al, bl = a.tolist(), b.tolist()
+    nxt = {v: i for i, v in enumerate(al)}
+    heads = set(al) - set(bl)
+    cur = nxt[min(heads)] if heads else 0
+    path: list[int] = []
+    while cur is not None and len(path) < len(al):
+        path.append(cur)
+        cur = nxt.get(bl[cur])
+    return path, len(heads)
 
 
 def _half_path(topo: Topology, st: np.ndarray) -> np.ndarray:
     """The first half (in path order) of a stretch of consistently oriented half-edges."""
     ha, hb = topo.ends()
-    a, b = ha[st], hb[st]
-    nxt = dict(zip(a.tolist(), range(len(st)), strict=True))
-    heads = set(a.tolist()) - set(b.tolist())
-    cur = nxt[min(heads)] if heads else 0
-    path = []
-    while cur is not None and len(path) < len(st):
-        path.append(cur)
-        cur = nxt.get(int(b[cur]))
+    path, _ = _chain(ha[st], hb[st])
     return st[np.array(path[: max(1, len(path) // 2)], dtype=np.int64)]
 
 

@@ -132,16 +132,6 @@ def _closed_length(P: np.ndarray) -> float:
     return float(np.linalg.norm(P - np.roll(P, -1, axis=0), axis=1).sum())
 
 
-def _true_scale_iso(V, F, uv, Fuv) -> tuple[np.ndarray, np.ndarray]:
-    """Per-face max(sigma1, 1/sigma2) of the map as it is (no global rescaling), and the 3D areas."""
-    from heatparam.metrics import face_jacobian_singular_values
-
-    s1, s2, sa, a3 = face_jacobian_singular_values(V, F, uv, Fuv)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        iso = np.where((sa > 0) & (s2 > 0), np.maximum(s1, 1.0 / s2), np.inf)
-    return iso, a3
-
-
 def build_pattern(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray, uv_vertex: np.ndarray,
                   chart: np.ndarray | None = None) -> Pattern:
     """Boundary loops (outer and holes) per chart, and the seams between chart borders.
@@ -169,7 +159,9 @@ def build_pattern(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray,
     """
     V, F, uv, Fuv, uv_vertex, chart = _checked_map(V, F, uv, Fuv, uv_vertex, chart)
     interior = _interior_edge_keys(V, F)
-    iso, a3 = _true_scale_iso(V, F, uv, Fuv)
+    from heatparam.metrics import true_scale_iso
+
+    iso, a3, _ = true_scale_iso(V, F, uv, Fuv)
     charts: list[Chart] = []
     seam_edges = []  # (3D key, chart, row a, row b) for each UV boundary half-edge on an interior 3D edge
     order = np.argsort(chart, kind="stable")  # each chart's faces, in order, without a pass over all per chart
@@ -435,4 +427,6 @@ def parse_sheet(text: str) -> tuple[float, float]:
 
 def face_iso(pattern: Pattern, V: np.ndarray) -> np.ndarray:
     """(m,) true-scale isometric distortion max(sigma1, 1/sigma2) per face (inf for flipped/degenerate faces)."""
-    return _true_scale_iso(V, pattern.F, pattern.uv, pattern.Fuv)[0]
+    from heatparam.metrics import true_scale_iso
+
+    return true_scale_iso(V, pattern.F, pattern.uv, pattern.Fuv)[0]

@@ -44,3 +44,21 @@ def triangulate(P: np.ndarray, E: np.ndarray, *, max_area: float = 0.0, min_angl
     except (ValueError, RuntimeError) as exc:
         raise ValueError(f"constrained triangulation failed (segments touch or cross): {exc}") from exc
     return np.asarray(P2, dtype=np.float64), np.asarray(T, dtype=np.int64)
+
+
+def shelf_pack(sizes: np.ndarray, width: float, gap: float) -> tuple[np.ndarray, float, float]:
+    """Lower-left corners of boxes (w,h) on shelves of the given width, tallest first: (k,2), used w, used h."""
+    order = np.lexsort((-sizes[:, 0], -sizes[:, 1]))
+    pos = np.zeros((len(sizes), 2))
+    x = y = shelf_h = 0.0
+    used_w = 0.0
+    for i in order:
+        w, h = sizes[i]
+        if x > 0 and x + w > width:
+            y += shelf_h + gap
+            x = shelf_h = 0.0
+        pos[i] = (x, y)
+        x += w + gap
+        used_w = max(used_w, x - gap)
+        shelf_h = max(shelf_h, h)
+    return pos, used_w, y + shelf_h

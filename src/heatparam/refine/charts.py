@@ -15,6 +15,7 @@ import time
 import numpy as np
 
 from heatparam import metrics
+from heatparam.mesh.planar import shelf_pack
 from heatparam.mesh.topology import boundary_loops
 from heatparam.refine.energy import det, jacobians, surface_gradients
 from heatparam.refine.newton import polish
@@ -42,14 +43,7 @@ def arrange(uv: np.ndarray, vgroup: np.ndarray, k: int) -> np.ndarray:
     pad = CHART_GAP * np.linalg.norm(size, axis=1)
     box = size + pad[:, None]
     width = max(float(np.sqrt((box[:, 0] * box[:, 1]).sum())) * 1.2, float(box[:, 0].max()))
-    pos = np.zeros((k, 2))
-    x = y = shelf = 0.0
-    for i in np.lexsort((-box[:, 0], -box[:, 1])):  # tallest first
-        if x > 0 and x + box[i, 0] > width:
-            x, y, shelf = 0.0, y + shelf, 0.0
-        pos[i] = (x, y)
-        x += box[i, 0]
-        shelf = max(shelf, box[i, 1])
+    pos = shelf_pack(box, width, 0.0)[0]
     out = uv.copy()
     out[used] += (pos - lo)[gi]
     return out
@@ -73,10 +67,13 @@ def refine_charts(V: np.ndarray, F: np.ndarray, uv: np.ndarray, vgroup: np.ndarr
     ``boundary_crossings`` of the result).
     """
     t0 = time.perf_counter()
-    x = arrange(uv, vgroup, k)
+    x0 = arrange(uv, vgroup, k)
     loops = boundary_loops(F)
     g, area = surface_gradients(V, F)
-    x, rep = polish(x, F, g, area, loops, max_iters=max_iters, tol=tol, backend=backend, excess_tol=excess_tol)
+    x, rep = polish(x0, F, g, area, loops, max_iters=max_iters, tol=tol, backend=backend, excess_tol=excess_tol)
+    if not np.isfinite(x).all():  # as refine.refine: the start is bijective and finite, keep it rather than NaN
+        x = x0
+        rep["fallback"] = "the polish produced non-finite coordinates: the start layouts are kept"
     rep["flips"] = int((det(jacobians(x, F, g)) <= 0).sum())
     rep["boundary_crossings"] = int(metrics.boundary_crossings(x, F))
     rep["charts"] = k
