@@ -391,6 +391,27 @@ def test_coarse_to_fine_on_a_surface_with_holes_is_bijective():
     assert start.bijectivity(y, s.F, g) == (0, 0)
 
 
+def test_coarse_to_fine_untangles_what_the_mean_value_repair_cannot(monkeypatch):
+    """halftunnel.off from its Tutte start with a 250-vertex coarse level: 3 prolongated faces beside the locked,
+    non-convex border stay flipped after both mean value repairs; the untangler unflips them."""
+    V, F = _load("halftunnel.off")
+    disk = tutte.build_disk(V, F)
+    loops = [disk.outer, *disk.holes]
+    g, _ = energy.surface_gradients(V, F)
+    x0 = tutte.tutte(V, disk)[: len(V)]
+    monkeypatch.setattr(multilevel, "COARSE_MIN", 250)
+    calls = []
+    real = multilevel.repair_flips
+    monkeypatch.setattr(multilevel, "repair_flips", lambda *a: calls.append(real(*a)) or calls[-1])
+    y, info = multilevel.coarse_to_fine(V, F, x0, loops, g, min_vertices=0, max_iters=200, tol=1e-6,
+                                        backend="auto")
+    assert [c[0] is None for c in calls] == [True, True]  # both mean value repairs failed
+    assert info["used"] and y is not None, info
+    assert info["repair_weights"].startswith("untangled") and info["prolongation_flips"] > 0
+    assert start.bijectivity(y, F, g) == (0, 0)
+    assert info["coarse_vertices"] < len(V)
+
+
 @pytest.mark.slow
 def test_multilevel_polish_matches_single_level():
     """camelhead↑45k (the size where coarse-to-fine starts by default): the same minimum as the plain polish, in

@@ -14,6 +14,7 @@ from heatparam.mesh.topology import face_areas
 from heatparam.refine.energy import det, jacobians, normalized_energy, surface_gradients
 from heatparam.refine.newton import polish
 from heatparam.refine.scaffold import loop_edges, loop_ranges
+from heatparam.refine.untangle import untangle
 
 COARSE_FRACTION = 1 / 8  # each coarser level has about this fraction of the vertices (camelhead↑727k: at 1/27 the
 #                          repair of the prolongation's flips failed, at 1/6.5 it needed 7 rounds) ...
@@ -126,6 +127,28 @@ def repair_flips(x: np.ndarray, ref: np.ndarray, F: np.ndarray, g: np.ndarray, l
             return y, first, r
     return None, first, REPAIR_ROUNDS
 
+def untangle_flips(y: np.ndarray, V: np.ndarray, F: np.ndarray, g: np.ndarray, locked: np.ndarray
+                   ) -> tuple[np.ndarray | None, int]:
+    """:func:`heatparam.refine.untangle.untangle` of the flipped faces' ``REPAIR_RINGS``-ring neighbourhood of the
+    layout ``y`` (n,2) (``locked`` (n,) bool vertices held), grown by ``REPAIR_RINGS`` rings while flips remain,
+    at most 3 times. Returns (layout or None, minimizations run)."""
+    area = face_areas(V, F)
+    bad = det(jacobians(y, F, g)) <= 0
+    adj = sp.csr_matrix((np.ones(6 * len(F), dtype=np.int32), (np.repeat(F, 2, axis=1).ravel(),
+                                                               F[:, [1, 2, 0, 2, 0, 1]].ravel())),
+                        shape=(len(y), len(y)))
+    region = np.zeros(len(y), dtype=bool)
+    region[F[bad].ravel()] = True
+    total = 0
+    for _ in range(3):
+        for _ in range(REPAIR_RINGS):
+            region |= adj @ region.astype(np.int32) > 0
+        z, r = untangle(y, F, g, area, region & ~locked)
+        total += r
+        if z is not None:
+            return z, total
+    return None, total
+
 def boundary_faces(F: np.ndarray, boundary: np.ndarray) -> np.ndarray:
     """The triangles of F (m,3) whose three corners are all boundary vertices (``boundary`` (n,) bool), (k,3)."""
     return F[boundary[F].all(axis=1)]
@@ -178,6 +201,11 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
         # prolongated layout itself keep it wherever its stars are valid, and unfold the rest (1 round there)
         z, _, rounds = repair_flips(y, y, F, g, locked)
         info["repair_weights"] = "prolongated layout"
+    if z is None:
+        # flips beside a locked non-convex boundary, where mean value interpolation cannot help (a 50k-vertex
+        # halftunnel from Tutte: 18 left after 12 rounds of both): untangle their neighbourhoods
+        z, rounds = untangle_flips(y, V, F, g, locked)
+        info["repair_weights"] = "untangled (Garanzha et al. 2021)"
     y = z
     info.update(prolongation_flips=flipped, repair_rounds=rounds, seconds=round(time.perf_counter() - t0, 3))
     if y is None:
