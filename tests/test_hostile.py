@@ -357,8 +357,17 @@ def test_refine_never_hands_on_a_non_finite_polish(monkeypatch):
 
     sh = datasets.flat_disk(h=0.15)
 
+    class NanPolish:  # what multilevel_polish hands back (a newton.Polish), gone non-finite
+        done = True
+
+        def __init__(self, x):
+            self.x = np.full_like(x, np.nan)
+
+        def report(self):
+            return {"stop": "converged"}
+
     def nan_polish(V, F, x, *a, **k):
-        return np.full_like(x, np.nan), {"stop": "converged"}, {"levels": 1}
+        return NanPolish(x), {"levels": 1}
 
     monkeypatch.setattr(refine, "multilevel_polish", nan_polish)  # as refine() calls it
     x, rep = refine.refine(sh.V, sh.F, None)

@@ -44,6 +44,13 @@ SEAM_TRY_EXCESS = 0.01
 #: ... and keeps it only when it lowers the mean isometric distortion by at least this fraction (measured,
 #: BENCHMARKS.md §6: halftunnel 1.536 → 1.18, beetle 1.080 → 1.02).
 SEAM_MIN_GAIN = 0.02
+#: ``seams auto`` decides on paused polishes: each of the two flattenings (without and with seams) pauses once a
+#: Newton iteration gains less than this fraction of the energy's excess over an isometry ...
+SEAM_PAUSE_EXCESS = 0.03
+#: ... and the decision is taken there when it holds for any finished iso mean between this fraction of the paused
+#: map's excess (iso mean - 1) and all of it (the polish lowers it; measured, BENCHMARKS.md §11c); otherwise both
+#: are finished first. Only the kept map is finished: the same map, the same iterations as without pausing.
+SEAM_PAUSE_FLOOR = 0.5
 #: Default of ``refine_multilevel``: meshes this large polish coarse-to-fine (docs/refine.md).
 MULTILEVEL_MIN_VERTICES = 30_000
 #: Largest vertex count for which ``geodesics auto`` takes the all-pairs path (n×n distances).

@@ -259,12 +259,16 @@ def test_seams_cut_the_holes_where_they_cost_distortion(halftunnel, halftunnel_m
     assert np.array_equal(cut.uv_vertex[cut.Fuv], F)  # every corner's UV row belongs to that corner's vertex
     m, mw = cut.report["metrics"], whole.report["metrics"]
     assert m["flips"] == 0 and m["boundary_crossings"] == 0 and mw["bijective"]
-    assert s["iso_mean_without"] == mw["iso_mean"] and s["iso_mean_with"] == m["iso_mean"]
+    # decided where the polish without seams paused (seams._decide): its iso mean there, above the finished one's
+    assert s["paused"]["maps"] == ["without"]
+    assert s["iso_mean_without"] > mw["iso_mean"] and s["iso_mean_with"] == m["iso_mean"]
     assert m["iso_mean"] <= (1 - 0.02) * mw["iso_mean"]
     again = metrics.summary(V, F, cut.uv, cut.Fuv)  # the report's metrics are those of the written map
     assert again["iso_mean"] == pytest.approx(m["iso_mean"], rel=1e-12) and again["bijective"]
     assert any("seams" in w for w in cut.report["warnings"])
-    assert cut.report["method"]["without_seams"]["metrics"]["iso_mean"] == mw["iso_mean"]
+    without = cut.report["method"]["without_seams"]
+    assert without["metrics"]["iso_mean"] == s["iso_mean_without"] and without["refine"]["polish"]["stop"] == "paused"
+    assert without["metrics"]["bijective"]
     slim = metrics.summary(V, F, _slim_from_tutte(V, F))
     print(f"halftunnel iso: seams {m['iso_mean']:.4f}, none {mw['iso_mean']:.4f}, SLIM {slim['iso_mean']:.4f} "
           f"({slim['flips']} flips, {slim['boundary_crossings']} crossings)")
@@ -289,6 +293,33 @@ def test_seams_auto_leaves_near_isometric_parts_with_holes_uncut():
     assert h.seamed and h.report["metrics"]["bijective"] and h.report["metrics"]["iso_mean"] < 1.001
     assert h.report["method"]["fill"]["used"] is False and "seams" in h.report["method"]["fill"]["reason"]
     assert datasets.layout_error(h.uv, sh.uv_true[h.uv_vertex]) < 1e-3
+
+
+def _noisy_cylinder_with_holes():
+    s = datasets.cylinder_with_holes()
+    return s.V + 0.1 * 0.045 * np.random.default_rng(0).standard_normal(s.V.shape), s.F
+
+
+@pytest.mark.parametrize("case", ["halftunnel", "noisy cylinder"])
+def test_seams_decided_on_paused_polishes_keep_the_map(case, halftunnel, halftunnel_maps, monkeypatch):
+    """``seams auto`` decides where the trial polishes paused when no finished value could change the answer: the
+    kept map is the one decided on finished polishes, bit for bit. halftunnel keeps the cut map (the uncut polish
+    paused after 8 of its 38 iterations), the noisy cylinder with holes keeps the uncut one (the cut trial paused)."""
+    from heatparam.pipeline import seams
+
+    V, F = halftunnel if case == "halftunnel" else _noisy_cylinder_with_holes()
+    paused = halftunnel_maps[0] if case == "halftunnel" else parameterize(V, F)
+    monkeypatch.setattr(seams, "SEAM_PAUSE_EXCESS", 0.0)  # both trials polished to the end
+    full = parameterize(V, F)
+    assert np.array_equal(paused.uv, full.uv) and np.array_equal(paused.Fuv, full.Fuv)
+    assert paused.report["metrics"] == full.report["metrics"]
+    sp, sf = paused.report["method"]["seams"], full.report["method"]["seams"]
+    assert sp["used"] == sf["used"] == (case == "halftunnel") and "paused" not in sf
+    assert sp["paused"]["maps"] == (["without"] if case == "halftunnel" else ["with"])
+    kept, other = ("iso_mean_with", "iso_mean_without") if sp["used"] else ("iso_mean_without", "iso_mean_with")
+    assert sp[kept] == sf[kept] and sp[other] >= sf[other]  # the paused one: not below its finished value
+    for key in ("iterations", "energy_end", "stop"):
+        assert paused.report["method"]["refine"]["polish"][key] == full.report["method"]["refine"]["polish"][key]
 
 
 def test_seams_deterministic(halftunnel, halftunnel_maps):

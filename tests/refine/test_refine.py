@@ -227,6 +227,30 @@ def test_polish_backends_agree(backend):
     assert datasets.layout_error(x, x_ref) <= 1e-5
 
 
+def test_polish_paused_and_resumed_makes_the_same_iterations():
+    """``newton.Polish``: pausing (an iteration gains < 3% of the excess) and going on gives the very layout and
+    report of the uninterrupted polish; the paused layout is bijective and its energy lies between start and end."""
+    s = datasets.curved_cap_with_holes(sphere_radius=1.2, h=0.04)
+    disk = tutte.build_disk(s.V, s.F)
+    g, area = energy.surface_gradients(s.V, s.F)
+    uv0 = tutte.tutte(s.V, disk)[: len(s.V)]
+    loops = [disk.outer, *disk.holes]
+    x_ref, info_ref = newton.polish(uv0, s.F, g, area, loops)
+    run = newton.Polish(uv0, s.F, g, area, loops)
+    pauses = 0
+    while not run.run(pause_excess=0.03):
+        pauses += 1
+        rep = run.report()
+        assert rep["stop"] == "paused" and not run.done
+        assert start.bijectivity(run.x, s.F, g) == (0, 0)
+        assert info_ref["energy_end"] <= rep["energy_end"] <= info_ref["energy_start"]
+    assert pauses >= 1 and run.done
+    assert np.array_equal(run.x, x_ref)
+    final = run.report()
+    for key in ("iterations", "converged", "stop", "energy_start", "energy_end", "factorizations"):
+        assert final[key] == info_ref[key], key
+
+
 def test_scaffold_refuses_crossing_loops():
     """Loops that cross cannot bound a scaffold: a clear ValueError, not a broken triangulation."""
     s = datasets.cylinder_with_holes()
@@ -489,8 +513,9 @@ def test_multilevel_polish_recurses_and_matches_single_level(monkeypatch):
     x0 = start.conformal_start(V, F, disk)
     monkeypatch.setattr(multilevel, "COARSE_MIN", 500)
     kw = dict(max_iters=200, tol=1e-6, backend="auto")
-    x1, p1, ml1 = multilevel.multilevel_polish(V, F, x0, loops, g, area, min_vertices=0, **kw)
-    x3, p3, ml3 = multilevel.multilevel_polish(V, F, x0, loops, g, area, min_vertices=1000, **kw)
+    r1, ml1 = multilevel.multilevel_polish(V, F, x0, loops, g, area, min_vertices=0, **kw)
+    r3, ml3 = multilevel.multilevel_polish(V, F, x0, loops, g, area, min_vertices=1000, **kw)
+    x3, p1, p3 = r3.x, r1.report(), r3.report()
     assert not ml1["used"] and ml1["reason"] == "small mesh"
     assert ml3["used"] and ml3["coarse_multilevel"]["used"], ml3
     assert len(V) > ml3["coarse_vertices"] > ml3["coarse_multilevel"]["coarse_vertices"]

@@ -27,7 +27,7 @@ from heatparam.memory import require
 from heatparam.options import Options, make_options
 from heatparam.pipeline.heat_stage import FillSurface, decide_fill, mds_map
 from heatparam.pipeline.report import Flat, Result, build_report, map_metrics, method_report
-from heatparam.pipeline.seams import seams_stage
+from heatparam.pipeline.seams import seam_pause, seams_stage
 from heatparam.pipeline.shortcuts import start_checks
 from heatparam.pipeline.surface import Surface
 from heatparam.progress import Progress
@@ -95,8 +95,9 @@ def _disk(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress) -> Result
         surface, comp, info = Surface.validated(V, F)
     _check_memory(len(V), len(F), opts)
     check_time_step(opts.time_step, info.diameter * surface.frame.unit)
-    flat = flatten(surface, opts, prog)
-    sr = seams_stage(surface, opts, prog, flat, flatten)
+    sr = seams_stage(surface, opts, prog, flatten(surface, opts, prog, pause_excess=seam_pause(surface, opts)),
+                     flatten)
+    flat = sr.uncut  # finished when kept; possibly paused when the cut map won (seams_stage)
     if surface.frame.exponent:  # back to model units (exact: × a power of two)
         flat, sr = _to_model(flat, surface.frame), sr._replace(flat=_to_model(sr.flat, surface.frame))
     if sr.cut is None:
@@ -140,32 +141,48 @@ def _check_memory(n: int, m: int, opts: Options) -> None:
 
 
 def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = False,
-            starts: dict[str, np.ndarray] | None = None) -> Flat:
+            starts: dict[str, np.ndarray] | None = None, pause_excess: float = 0.0) -> Flat:
     """The stages on one surface (``seamed``: cut open by the seams stage, whose seams a fill would close again;
-    ``starts``: further named start layouts (n,2) for the refinement, e.g. the uncut map with its slits opened)."""
-    from heatparam.refine import RefineParams, refine
+    ``starts``: further named start layouts (n,2) for the refinement, e.g. the uncut map with its slits opened;
+    ``pause_excess`` > 0: the polish may pause once an iteration gains less than that fraction of the energy's
+    excess over an isometry, and the Flat's ``resume`` finishes it: the seams stage decides on paused maps).
+    """
+    from heatparam.refine import Refinement, RefineParams
 
     with prog.stage("fill decision"):
         fill_used, fill_reason = decide_fill(opts, surface, seamed)
     check = start_checks(surface, opts, prog, seamed)
+    params = RefineParams.from_options(opts)
     if check.skipped is not None:
         fill = {"used": False, "reason": fill_reason, "skipped": check.skipped} if fill_used else \
             {"used": False, "reason": fill_reason}
         with prog.stage("refine"):
-            uv, refine_report = refine(surface.V, surface.F, None, RefineParams.from_options(opts), prog,
-                                       surface.conformal, check.lscm, surface.gradients(), starts)
-        summary = map_metrics(surface.V, surface.F, uv, prog, None)
-        method = method_report(opts, None, check.skipped, fill, refine_report, check.fold_check)
-        return Flat(uv, summary, method, None, None, [])
+            rf = Refinement(surface.V, surface.F, None, params, prog, surface.conformal, check.lscm,
+                            surface.gradients(), starts, pause_excess)
+        return _refined(surface, opts, prog, rf, None, check.skipped, fill, check.fold_check, None, [])
     m = mds_map(surface, opts, prog, fill_used, fill_reason)
-    uv, refine_report = m.uv, {"method": opts.refine}
-    if opts.refine != "none":
+    if opts.refine == "none":
+        summary = map_metrics(surface.V, surface.F, m.uv, prog, m.layout)
+        method = method_report(opts, m.layout, None, m.fill, {"method": opts.refine}, check.fold_check)
+        return Flat(m.uv, summary, method, m.layout, m.fill_surface, m.warnings)
+    with prog.stage("refine"):
+        rf = Refinement(surface.V, surface.F, m.uv, params, prog, surface.conformal, check.lscm,
+                        surface.gradients(), starts, pause_excess)
+    return _refined(surface, opts, prog, rf, m.layout, None, m.fill, check.fold_check, m.fill_surface, m.warnings)
+
+
+def _refined(surface: Surface, opts: Options, prog: Progress, rf, layout, skipped, fill, fold_check, fill_surface,
+             warnings: list[str]) -> Flat:
+    """The Flat of a refinement (``refine.Refinement``), with a ``resume`` that finishes it when it paused."""
+    summary = map_metrics(surface.V, surface.F, rf.x, prog, layout)
+    method = method_report(opts, layout, skipped, fill, rf.report(), fold_check)
+
+    def resume() -> Flat:
         with prog.stage("refine"):
-            uv, refine_report = refine(surface.V, surface.F, uv, RefineParams.from_options(opts), prog,
-                                       surface.conformal, check.lscm, surface.gradients(), starts)
-    summary = map_metrics(surface.V, surface.F, uv, prog, m.layout)
-    method = method_report(opts, m.layout, None, m.fill, refine_report, check.fold_check)
-    return Flat(uv, summary, method, m.layout, m.fill_surface, m.warnings)
+            rf.run()
+        return _refined(surface, opts, prog, rf, layout, skipped, fill, fold_check, fill_surface, warnings)
+
+    return Flat(rf.x, summary, method, layout, fill_surface, warnings, None if rf.done else resume)
 
 
 __all__ = ["FillSurface", "Options", "Result", "flatten", "parameterize", "parameterize_disk"]

@@ -4,6 +4,7 @@ report, assembled here and nowhere else."""
 from __future__ import annotations
 
 import platform
+from collections.abc import Callable
 from dataclasses import asdict
 from typing import NamedTuple
 
@@ -18,7 +19,9 @@ from heatparam.progress import Progress
 
 class Flat(NamedTuple):
     """One flattening of a surface: the map (n,2), its metrics, the report's ``method`` part, the MDS layout it
-    came from (None when the heat stage was skipped), the fill surface (for pictures) and warnings."""
+    came from (None when the heat stage was skipped), the fill surface (for pictures) and warnings. ``resume``:
+    None for a finished flattening; for one whose polish paused (``pipeline.flatten(pause_excess=...)``: the map
+    is bijective, its metrics those of the paused layout) a call that finishes it and returns the finished Flat."""
 
     uv: np.ndarray
     summary: dict
@@ -26,6 +29,7 @@ class Flat(NamedTuple):
     layout: Layout | None
     fill_surface: FillSurface | None
     warnings: list[str]
+    resume: Callable[[], Flat] | None = None
 
 
 def map_metrics(V: np.ndarray, F: np.ndarray, uv: np.ndarray, prog: Progress, layout: Layout | None) -> dict:

@@ -17,7 +17,7 @@ import numpy as np
 from heatparam.errors import HeatparamError
 from heatparam.mesh.seams import cut_open, hole_seams
 from heatparam.mesh.validate import validate_mesh
-from heatparam.options import SEAM_MIN_GAIN, SEAM_TRY_EXCESS
+from heatparam.options import SEAM_MIN_GAIN, SEAM_PAUSE_EXCESS, SEAM_PAUSE_FLOOR, SEAM_TRY_EXCESS
 from heatparam.pipeline.report import Flat
 from heatparam.pipeline.surface import Surface
 from heatparam.progress import Progress
@@ -34,19 +34,32 @@ class Cut(NamedTuple):
 
 
 class SeamResult(NamedTuple):
-    """The seams stage's value: the flattening to keep (``flat`` itself when not cut), the cut (None when not
-    cut), the report's ``seams`` part, and warnings."""
+    """The seams stage's value: the flattening to keep (finished; the one without seams when not cut), the cut
+    (None when not cut), the report's ``seams`` part, warnings, and the flattening without seams as the stage
+    left it (``uncut``: the kept one when not cut; when cut, possibly paused, as its report says)."""
 
     flat: Flat
     cut: Cut | None
     report: dict
     warnings: list[str]
+    uncut: Flat
+
+
+def seam_pause(surface: Surface, opts) -> float:
+    """The ``pause_excess`` of the flattening without seams: ``SEAM_PAUSE_EXCESS`` when ``seams auto`` may try the
+    cut-open mesh (holes, a refined map), so that a trial the map will not keep is not polished to the end; else 0."""
+    auto = opts.seams == "auto" and opts.refine != "none" and surface.info.n_holes > 0
+    return SEAM_PAUSE_EXCESS if auto else 0.0
 
 
 def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat,
                 flatten: Callable[..., Flat], uncut_start: bool = False) -> SeamResult:
-    """``Options.seams``: the flattening (``flatten(cut surface, opts, prog, seamed=True, starts)``) of the surface
-    cut open from every hole to the border when it is asked for or (``auto``) clearly better than ``flat``.
+    """``Options.seams``: the flattening (``flatten(cut surface, opts, prog, seamed=True, starts, pause_excess)``)
+    of the surface cut open from every hole to the border when it is asked for or (``auto``) clearly better than
+    ``flat``. The returned flattening is finished (``flat`` may come paused: :func:`seam_pause`).
+
+    ``seams auto`` decides on paused polishes where it can (:func:`_decide`): the kept map is then finished, the
+    other one not; the report's ``seams.paused`` says which iso means were read on a paused map.
 
     ``uncut_start``: offer the refinement ``flat``'s map with the slits opened (``refine.seam_start.open_slits``)
     as the start candidate ``"uncut"``. Off by default: on beetle that start wins on energy (1.0106 vs Tutte's 37.6)
@@ -54,43 +67,98 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat,
     iterations (67 vs 44), on halftunnel LSCM's start is lower (1.218 vs 1.300); ``bench/bench_seams.py``.
     """
     rep: dict = {"mode": opts.seams, "used": False}
+    if flat.resume is not None and not _surely_tried(flat):
+        flat = flat.resume()  # whether the cut is tried at all depends on the finished map's iso mean
     reason = _no_cut_reason(surface, opts, flat)
     if reason is not None:
-        return SeamResult(flat, None, rep | {"reason": reason}, [])
+        flat = _finished(flat)
+        return SeamResult(flat, None, rep | {"reason": reason}, [], flat)
     with prog.stage("seams"):
         paths = hole_seams(surface.V, surface.F, surface.info.boundary_loops)
         Vs, Fs, src = cut_open(surface.V, surface.F, paths)
         try:
             cut_surface = Surface(Vs, Fs, validate_mesh(Vs, Fs))
         except HeatparamError as exc:  # a seam set that does not leave a disk (never seen): keep the map
-            return SeamResult(flat, None, rep | {"reason": f"the cut-open mesh is not a disk ({exc})"}, [])
-    iso = flat.summary["iso_mean"]
+            flat = _finished(flat)
+            return SeamResult(flat, None, rep | {"reason": f"the cut-open mesh is not a disk ({exc})"}, [], flat)
     lengths = [float(np.linalg.norm(np.diff(surface.V[p], axis=0), axis=1).sum()) for p in paths]
     rep.update(seams=len(paths), length=round(sum(lengths), 9), longest=round(max(lengths), 9),
-               split_vertices=int(len(Vs) - len(surface.V)), iso_mean_without=iso)
+               split_vertices=int(len(Vs) - len(surface.V)))
     starts = None
     if uncut_start and opts.refine != "none":
         with prog.stage("seams"):
             x, rep["uncut_start"] = open_slits(flat.uv[src], Fs, src)
         starts = None if x is None else {"uncut": x}
-    cut = flatten(cut_surface, opts, prog, True, starts)
-    iso_s = cut.summary["iso_mean"]
-    rep.update(iso_mean_with=iso_s, bijective_with=cut.summary["bijective"])
+    pause = SEAM_PAUSE_EXCESS if opts.seams == "auto" else 0.0
+    cut = flatten(cut_surface, opts, prog, True, starts, pause)
     if opts.seams == "auto":
-        better = cut.summary["bijective"] and (not flat.summary["bijective"] or iso_s <= iso * (1 - SEAM_MIN_GAIN))
-        if not better:
-            rep["reason"] = (f"the cut-open map is not {SEAM_MIN_GAIN:.0%} better (iso mean {iso_s:.4f} vs "
-                             f"{iso:.4f}{'' if cut.summary['bijective'] else ', not bijective'}); kept without seams")
-            return SeamResult(flat, None, rep, [])
-        rep["reason"] = (f"the holes cost distortion: iso mean {iso:.4f} without seams, {iso_s:.4f} with "
-                         f"{len(paths)} (seams='none' keeps one uncut piece)")
+        better, flat, cut = _decide(flat, cut)
+    else:
+        better = True
+    if better:
+        cut = _finished(cut)
+    else:
+        flat = _finished(flat)
+    iso, iso_s = flat.summary["iso_mean"], cut.summary["iso_mean"]
+    rep.update(iso_mean_without=iso, iso_mean_with=iso_s, bijective_with=cut.summary["bijective"])
+    paused = [name for name, f in (("without", flat), ("with", cut)) if f.resume is not None]
+    if paused:
+        rep["paused"] = {"maps": paused, "pause_excess": SEAM_PAUSE_EXCESS, "floor": SEAM_PAUSE_FLOOR,
+                         "note": ("the iso mean of these maps was read where their polish paused; the decision "
+                                  "held for any finished value from the floor × their excess over 1 to all of it, "
+                                  "so they were not finished")}
+    if not better:
+        rep["reason"] = (f"the cut-open map is not {SEAM_MIN_GAIN:.0%} better (iso mean {iso_s:.4f}"
+                         f"{' (paused)' if paused else ''} vs {iso:.4f}"
+                         f"{'' if cut.summary['bijective'] else ', not bijective'}); kept without seams")
+        return SeamResult(flat, None, rep, [], flat)
+    if opts.seams == "auto":
+        rep["reason"] = (f"the holes cost distortion: iso mean {iso:.4f}{' (paused)' if paused else ''}"
+                         f" without seams, {iso_s:.4f} with {len(paths)} (seams='none' keeps one uncut piece)")
     else:
         rep["reason"] = "requested (seams='holes')"
     rep["used"] = True
     warning = (f"the map has seams: {len(paths)} cut(s), {sum(lengths):.6g} long in all, join the holes to the border "
                f"(iso mean {iso:.4f} → {iso_s:.4f}); the OBJ's vt rows split along them (seams='none': one uncut "
                "piece)")
-    return SeamResult(cut, Cut(cut_surface, src, paths), rep, [*cut.warnings, warning])
+    return SeamResult(cut, Cut(cut_surface, src, paths), rep, [*cut.warnings, warning], flat)
+
+
+def _finished(f: Flat) -> Flat:
+    return f if f.resume is None else f.resume()
+
+
+def _range(f: Flat) -> tuple[float, float]:
+    """The iso means the finished map of ``f`` may have: exact when finished, else from ``SEAM_PAUSE_FLOOR`` of the
+    paused excess to the paused value."""
+    iso = f.summary["iso_mean"]
+    return (iso, iso) if f.resume is None else (1.0 + SEAM_PAUSE_FLOOR * (iso - 1.0), iso)
+
+
+def _surely_tried(flat: Flat) -> bool:
+    """Whether ``seams auto`` tries the cut for any finished value of the paused map ``flat`` (bijective: the
+    polish keeps it so)."""
+    return flat.summary["bijective"] and _range(flat)[0] > 1.0 + SEAM_TRY_EXCESS
+
+
+def _decide(flat: Flat, cut: Flat) -> tuple[bool, Flat, Flat]:
+    """``seams auto``'s rule — keep the cut map when it is bijective and (the map without seams is not, or) its
+    iso mean is at least ``SEAM_MIN_GAIN`` lower — on paused maps when the rule gives the same answer for every
+    finished value they may have (:func:`_range`); otherwise both are finished and it is applied to them.
+    Returns (keep the cut?, flat, cut), finished where that was needed."""
+    for _ in range(2):
+        if cut.summary["bijective"] and flat.summary["bijective"]:
+            (u_lo, u_hi), (c_lo, c_hi) = _range(flat), _range(cut)
+            if c_hi <= u_lo * (1 - SEAM_MIN_GAIN):
+                return True, flat, cut
+            if c_lo > u_hi * (1 - SEAM_MIN_GAIN):
+                return False, flat, cut
+        elif flat.resume is None and cut.resume is None:
+            break
+        flat, cut = _finished(flat), _finished(cut)
+    better = cut.summary["bijective"] and (not flat.summary["bijective"]
+                                           or cut.summary["iso_mean"] <= flat.summary["iso_mean"] * (1 - SEAM_MIN_GAIN))
+    return better, flat, cut
 
 
 def _no_cut_reason(surface: Surface, opts, flat: Flat) -> str | None:

@@ -28,7 +28,7 @@ from heatparam import metrics
 from heatparam.layout.tutte import build_disk
 from heatparam.options import MULTILEVEL_MIN_VERTICES
 from heatparam.refine.energy import det, jacobians, surface_gradients
-from heatparam.refine.multilevel import multilevel_polish
+from heatparam.refine.multilevel import multilevel_polish, run_polish
 from heatparam.refine.start import LscmStart, choose_start
 
 #: Peak memory of the refinement per surface face, above the rest of the pipeline: the peak RSS of the default run
@@ -80,6 +80,7 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefinePa
     Returns
     -------
     The refined layout (n,2) and a JSON-able report of what was done (start, polish, multilevel, bijectivity).
+    :class:`Refinement` does the same work and can pause the polish.
 
     Examples
     --------
@@ -89,30 +90,75 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefinePa
     >>> rep["bijective"], rep["start"]["layout"]
     (True, 'lscm')
     """
-    t0 = time.perf_counter()
-    params = RefineParams() if params is None else params
-    disk = build_disk(V, F)
-    loops = disk.loops
-    g, area = surface if surface is not None else surface_gradients(V, F)
-    x, start = choose_start(V, F, uv, disk, g, area, lscm, conformal, params.solver, extra_starts)
-    report: dict = {"method": "sd", "holes": len(disk.holes), "start": start}
-    x_start = x
-    # One OpenBLAS thread: the polish's vector work is small, and OpenBLAS threads on it cost 10-60% on 2 cores
-    # (2.2 s vs 2.5 s on camelhead alone, 6.2 s with another process busy). MKL (PARDISO) keeps its threads.
-    with ThreadpoolController().select(internal_api="openblas").limit(limits=1):
-        x, pinfo, report["multilevel"] = multilevel_polish(V, F, x, loops, g, area, min_vertices=params.multilevel,
-                                                           max_iters=params.max_iters, tol=params.tol,
-                                                           backend=params.solver, progress=progress)
-    if not np.isfinite(x).all():  # the start is bijective and finite: keep it rather than hand NaN on
-        x = x_start
-        pinfo["fallback"] = "the polish produced non-finite coordinates: the start layout is kept"
-    pinfo["method"] = "projected-newton + scaffold"
-    report["polish"] = pinfo
-    report["flips"] = int((det(jacobians(x, F, g)) <= 0).sum())
-    report["boundary_crossings"] = int(metrics.boundary_crossings(x, F))
-    report["bijective"] = report["flips"] == 0 and report["boundary_crossings"] == 0
-    report["seconds"] = round(time.perf_counter() - t0, 3)
-    return x, report
+    r = Refinement(V, F, uv, params, progress, conformal, lscm, surface, extra_starts)
+    r.run()
+    return r.x, r.report()
 
 
-__all__ = ["POLISH_BYTES_PER_FACE", "LscmStart", "RefineParams", "polish_bytes", "refine"]
+class Refinement:
+    """:func:`refine` in steps: the start and the coarse levels at construction, then the fine polish by
+    ``run(pause_excess)``: it returns False when the polish paused (an iteration gained less than
+    ``pause_excess`` of the energy's excess over an isometry, :class:`newton.Polish`), and ``run()`` goes on to the
+    very layout of an uninterrupted refine. ``x`` (n,2) is the current layout (bijective at every pause),
+    ``report()`` the report so far (``polish.stop`` "paused" while paused), ``done`` whether the polish stopped."""
+
+    def __init__(self, V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefineParams | None = None,
+                 progress=None, conformal: Callable[[], np.ndarray] | None = None, lscm: LscmStart | None = None,
+                 surface: tuple[np.ndarray, np.ndarray] | None = None,
+                 extra_starts: dict[str, np.ndarray] | None = None, pause_excess: float = 0.0):
+        t0 = time.perf_counter()
+        self.params = params = RefineParams() if params is None else params
+        self.V, self.F, self.progress = V, F, progress
+        disk = build_disk(V, F)
+        g, area = surface if surface is not None else surface_gradients(V, F)
+        self.g = g
+        x, start = choose_start(V, F, uv, disk, g, area, lscm, conformal, params.solver, extra_starts)
+        self._report: dict = {"method": "sd", "holes": len(disk.holes), "start": start}
+        self.x_start = x
+        with _one_openblas_thread():
+            self.polish, self._report["multilevel"] = multilevel_polish(
+                V, F, x, disk.loops, g, area, min_vertices=params.multilevel, max_iters=params.max_iters,
+                tol=params.tol, backend=params.solver, progress=progress, pause_excess=pause_excess)
+        self.seconds = time.perf_counter() - t0
+
+    @property
+    def done(self) -> bool:
+        return self.polish.done
+
+    @property
+    def x(self) -> np.ndarray:
+        # the start is bijective and finite: keep it rather than hand NaN on
+        return self.polish.x if np.isfinite(self.polish.x).all() else self.x_start
+
+    def run(self, pause_excess: float = 0.0) -> bool:
+        """Go on with the fine polish (see the class); True once it has stopped."""
+        t0 = time.perf_counter()
+        with _one_openblas_thread():
+            done = self.polish.done or run_polish(self.polish, self.progress, pause_excess=pause_excess)
+        self.seconds += time.perf_counter() - t0
+        return done
+
+    def report(self) -> dict:
+        """The JSON-able report (start, polish, multilevel, bijectivity of ``x``, seconds)."""
+        t0 = time.perf_counter()
+        report = dict(self._report)
+        pinfo = self.polish.report()
+        if not np.isfinite(self.polish.x).all():
+            pinfo["fallback"] = "the polish produced non-finite coordinates: the start layout is kept"
+        pinfo["method"] = "projected-newton + scaffold"
+        report["polish"] = pinfo
+        x = self.x
+        report["flips"] = int((det(jacobians(x, self.F, self.g)) <= 0).sum())
+        report["boundary_crossings"] = int(metrics.boundary_crossings(x, self.F))
+        report["bijective"] = report["flips"] == 0 and report["boundary_crossings"] == 0
+        report["seconds"] = round(self.seconds + time.perf_counter() - t0, 3)
+        return report
+
+
+def _one_openblas_thread():
+    """One OpenBLAS thread: the polish's vector work is small, and OpenBLAS threads on it cost 10-60% on 2 cores
+    (2.2 s vs 2.5 s on camelhead alone, 6.2 s with another process busy). MKL (PARDISO) keeps its threads."""
+    return ThreadpoolController().select(internal_api="openblas").limit(limits=1)
+
+
+__all__ = ["POLISH_BYTES_PER_FACE", "LscmStart", "RefineParams", "Refinement", "polish_bytes", "refine"]

@@ -12,7 +12,7 @@ from heatparam import metrics
 from heatparam.mesh.planar import make_ccw, triangulate
 from heatparam.mesh.topology import face_areas
 from heatparam.refine.energy import det, jacobians, normalized_energy, surface_gradients
-from heatparam.refine.newton import polish
+from heatparam.refine.newton import Polish
 from heatparam.refine.scaffold import loop_edges, loop_ranges
 from heatparam.refine.untangle import untangle
 
@@ -187,9 +187,10 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
     local = np.full(n, -1, dtype=np.int64)
     local[ids] = np.arange(len(ids))
     ears = boundary_faces(F if guards is None else np.vstack([F, guards]), locked)
-    xc, cinfo, cml = multilevel_polish(V[ids], T, x[ids], cloops, gc, ac, min_vertices=min_vertices,
-                                       max_iters=max_iters, tol=tol, backend=backend, progress=progress,
-                                       guards=local[ears], label=f"coarse, {len(ids)} vertices")
+    crun, cml = multilevel_polish(V[ids], T, x[ids], cloops, gc, ac, min_vertices=min_vertices,
+                                  max_iters=max_iters, tol=tol, backend=backend, progress=progress,
+                                  guards=local[ears], label=f"coarse, {len(ids)} vertices")
+    xc, cinfo = crun.x, crun.report()
     info.update(coarse_polish=cinfo, coarse_multilevel=cml, guards=int(len(ears)))
     y = prolongate(x, x[ids], T, xc)
     y[ids] = xc
@@ -216,12 +217,15 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
 
 def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.ndarray], g: np.ndarray,
                       area: np.ndarray, *, min_vertices: int, max_iters: int, tol: float, backend: str,
-                      progress=None, guards: np.ndarray | None = None, label: str = "Newton"
-                      ) -> tuple[np.ndarray, dict, dict]:
+                      progress=None, guards: np.ndarray | None = None, label: str = "Newton",
+                      pause_excess: float = 0.0) -> tuple[Polish, dict]:
     """:func:`polish` of (V (n,3), F (m,3)) from the bijective layout ``x`` (n,2); coarse-to-fine
     (:func:`coarse_to_fine`) when the mesh has >= ``min_vertices`` (> 0) vertices and ``x`` is more than
     ``MULTILEVEL_MIN_EXCESS`` above an isometry. After a converged coarse level the polish stops at
-    ``MULTILEVEL_FINE_TOL_FACTOR`` × ``tol``. Returns (layout (n,2), polish report, coarse-to-fine report)."""
+    ``MULTILEVEL_FINE_TOL_FACTOR`` × ``tol``. ``pause_excess`` > 0: the fine polish pauses once an iteration gains
+    less than that fraction of the energy's excess (:class:`newton.Polish`; :func:`run_polish` goes on).
+    Returns (the fine level's :class:`newton.Polish`: its layout ``x`` (n,2) and ``report()``, coarse-to-fine
+    report)."""
     if not 0 < min_vertices <= len(V):
         ml: dict = {"used": False, "reason": "small mesh"}
     elif not normalized_energy(x, F, g, area) > 1.0 + MULTILEVEL_MIN_EXCESS:
@@ -238,11 +242,19 @@ def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[n
                 tol *= MULTILEVEL_FINE_TOL_FACTOR
             ml["fine_tol"] = tol
     # open-ended: Newton stops when converged (5-50 iterations measured), far below the cap
+    run = Polish(x, F, g, area, loops, max_iters=max_iters, tol=tol, backend=backend, guards=guards)
+    run_polish(run, progress, label, pause_excess)
+    return run, ml
+
+
+def run_polish(run: Polish, progress=None, label: str = "Newton", pause_excess: float = 0.0) -> bool:
+    """``run.run(pause_excess)`` under a progress bar (``progress``: a ``progress.Progress`` or None); True when
+    the polish has stopped, False when it paused."""
     bar = progress.bar(None, f"polish ({label})") if progress is not None else None
+    run.bar = bar
     try:
-        x, pinfo = polish(x, F, g, area, loops, max_iters=max_iters, tol=tol, backend=backend, bar=bar,
-                          guards=guards)
+        return run.run(pause_excess)
     finally:
+        run.bar = None
         if bar is not None:
             bar.close()
-    return x, pinfo, ml

@@ -214,73 +214,118 @@ def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops
     boundary loops, outer first; guards (k,3): extra triangles, positive in ``uv``, without energy but kept
     positive like the others (``multilevel.coarse_to_fine``); excess_tol: an iteration that lowers the energy by less
     than this fraction of its excess over an isometry (Ψ - 4) also counts as small (0: off; ``refine.charts``).
-    Returns the layout (n,2) and a JSON-able report.
+    Returns the layout (n,2) and a JSON-able report. :class:`Polish` runs the same iterations in steps.
     """
-    t0 = time.perf_counter()
-    n = len(uv)
-    backend = large_system_backend(2 * n, backend, POLISH_PARDISO_MIN_UNKNOWNS)
-    w_surf = area / area.sum()
-    w_scaf = w_max = SCAFFOLD_WEIGHT * float(w_surf.mean())
-    w_min = SCAFFOLD_WEIGHT_MIN * w_max
-    x = uv.copy()
-    hist: list[float] = []
-    fac, refactorizations, it, converged, stop = None, 0, 0, False, "iteration cap"
-    small, full_step = 0, 0.5  # a step of at least half the Newton step counts as uncut
-    J = jacobians(x, F, g)  # surface Jacobians and energy of the current layout, carried from step to step
-    Es = symmetric_dirichlet(J, w_surf)[0]
-    # Ψ ≥ 4 on every face (equality iff isometric), so no step can gain more than Es - 4: below the Newton-decrement
-    # threshold the start is the minimum (the LSCM start of a developable part) and nothing is assembled
-    if np.isfinite(Es) and Es - 4.0 <= DECREMENT_TOL * tol * Es:
-        hist.append(Es)
-        max_iters, converged, stop = 0, True, "converged (the start is an isometry to within the tolerance)"
-    else:
-        pat = HessianPattern(F, n)
-    guards = np.zeros((0, 3), dtype=np.int64) if guards is None else guards
-    gg = hat_gradients(x[guards])  # any positive rest triangle will do: only the sign of det J is watched
-    while it < max_iters:
-        it += 1
-        try:
-            sy = _system(x, J, Es, F, g, w_surf, w_scaf, loops, pat)
-        except ValueError as exc:
-            stop = f"scaffold failed: {exc}"
-            break
-        hist.append(Es)
-        direction = _safe_direction(sy, fac, backend)
-        if isinstance(direction, str):
-            stop = direction
-            break
-        dx, fac, fresh = direction
-        refactorizations += fresh
-        # a negligible Newton decrement: the start is already the minimum (module docstring, "Stopping")
-        if 0.5 * float(sy.rhs @ dx) <= DECREMENT_TOL * tol * sy.E0:
-            converged, stop = True, "converged"
-            break
-        step = _barrier_step(x, J, dx, F, g, w_surf, sy, guards, gg)
-        if step is None:
-            stop = "no descent"
-            break
-        t, d = step
-        x = x + t * d
-        J = jacobians(x, F, g)
-        Es1 = symmetric_dirichlet(J, w_surf)[0]
-        if bar is not None:
-            bar.set_postfix_str(f"energy {Es1 / 4:.5f} (1 = isometry)", refresh=False)
-            bar.update(1)
-        Es = Es1
-        if (hist[-1] - Es1) / hist[-1] < tol or (excess_tol > 0 and hist[-1] - Es1 < excess_tol * (Es1 - 4.0)):
-            small += 1  # converged only after an uncut step with the lightest scaffold ("Stopping")
-            if t >= full_step and w_scaf > w_min:
-                w_scaf = w_min
-                continue
-            if t >= full_step or small >= STALL_ITERS:
-                hist.append(Es1)
-                converged, stop = t >= full_step, ("converged" if t >= full_step else "stalled at the barrier")
-                break
+    run = Polish(uv, F, g, area, loops, max_iters=max_iters, tol=tol, backend=backend, bar=bar, guards=guards,
+                 excess_tol=excess_tol)
+    run.run()
+    return run.x, run.report()
+
+
+class Polish:
+    """:func:`polish` as an object that can pause and go on: ``run(pause_excess)`` iterates until the polish stops
+    or (``pause_excess`` > 0) an iteration lowers the energy by less than that fraction of its excess over an
+    isometry; ``run()`` again goes on from there, so a paused and resumed polish makes exactly the iterations (and
+    the layout) of one that never paused. ``x`` (n,2) is the current layout, ``done`` whether it has stopped."""
+
+    def __init__(self, uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray], *,
+                 max_iters: int = 200, tol: float = 1e-6, backend: str = "auto", bar=None,
+                 guards: np.ndarray | None = None, excess_tol: float = 0.0):
+        t0 = time.perf_counter()
+        self.F, self.g, self.loops, self.bar, self.tol, self.excess_tol = F, g, loops, bar, tol, excess_tol
+        n = len(uv)
+        self.backend = large_system_backend(2 * n, backend, POLISH_PARDISO_MIN_UNKNOWNS)
+        self.w_surf = area / area.sum()
+        self.w_scaf = self.w_max = SCAFFOLD_WEIGHT * float(self.w_surf.mean())
+        self.w_min = SCAFFOLD_WEIGHT_MIN * self.w_max
+        self.x = uv.copy()
+        self.hist: list[float] = []
+        self.fac, self.refactorizations, self.it, self.converged, self.stop = None, 0, 0, False, "iteration cap"
+        self.small = 0
+        self.max_iters = max_iters
+        self.done = False
+        # surface Jacobians and energy of the current layout, carried from step to step
+        self.J = jacobians(self.x, F, g)
+        self.Es = symmetric_dirichlet(self.J, self.w_surf)[0]
+        # Ψ ≥ 4 on every face (equality iff isometric), so no step can gain more than Es - 4: below the
+        # Newton-decrement threshold the start is the minimum (the LSCM start of a developable part) and nothing is
+        # assembled
+        if np.isfinite(self.Es) and self.Es - 4.0 <= DECREMENT_TOL * tol * self.Es:
+            self.hist.append(self.Es)
+            self.max_iters, self.converged = 0, True
+            self.stop = "converged (the start is an isometry to within the tolerance)"
         else:
-            small = 0
-        # relax the scaffold while Newton steps go through uncut ("Scaffold weight")
-        w_scaf = max(w_scaf / SCAFFOLD_ADAPT, w_min) if t >= full_step else min(w_scaf * SCAFFOLD_ADAPT, w_max)
-    return x, {"iterations": it, "converged": converged, "stop": stop,
-               "energy_start": float(hist[0] / 4 if hist else np.nan),
-               "energy_end": float(hist[-1] / 4 if hist else np.nan), "factorizations": refactorizations,
-               "backend": backend, "seconds": round(time.perf_counter() - t0, 3)}
+            self.pat = HessianPattern(F, n)
+        self.guards = np.zeros((0, 3), dtype=np.int64) if guards is None else guards
+        self.gg = hat_gradients(self.x[self.guards])  # any positive rest triangle will do: only det J's sign counts
+        self.seconds = time.perf_counter() - t0
+
+    def run(self, pause_excess: float = 0.0) -> bool:
+        """Iterate until the polish stops (returns True) or pauses (False; module docstring of the class)."""
+        t0 = time.perf_counter()
+        try:
+            return self._run(pause_excess)
+        finally:
+            self.seconds += time.perf_counter() - t0
+
+    def _run(self, pause_excess: float) -> bool:
+        F, g, w_surf, tol, excess_tol = self.F, self.g, self.w_surf, self.tol, self.excess_tol
+        full_step = 0.5  # a step of at least half the Newton step counts as uncut
+        while self.it < self.max_iters:
+            self.it += 1
+            try:
+                sy = _system(self.x, self.J, self.Es, F, g, w_surf, self.w_scaf, self.loops, self.pat)
+            except ValueError as exc:
+                self.stop = f"scaffold failed: {exc}"
+                break
+            self.hist.append(self.Es)
+            direction = _safe_direction(sy, self.fac, self.backend)
+            if isinstance(direction, str):
+                self.stop = direction
+                break
+            dx, self.fac, fresh = direction
+            self.refactorizations += fresh
+            # a negligible Newton decrement: the start is already the minimum (module docstring, "Stopping")
+            if 0.5 * float(sy.rhs @ dx) <= DECREMENT_TOL * tol * sy.E0:
+                self.converged, self.stop = True, "converged"
+                break
+            step = _barrier_step(self.x, self.J, dx, F, g, w_surf, sy, self.guards, self.gg)
+            if step is None:
+                self.stop = "no descent"
+                break
+            t, d = step
+            self.x = self.x + t * d
+            self.J = jacobians(self.x, F, g)
+            Es1 = symmetric_dirichlet(self.J, w_surf)[0]
+            if self.bar is not None:
+                self.bar.set_postfix_str(f"energy {Es1 / 4:.5f} (1 = isometry)", refresh=False)
+                self.bar.update(1)
+            self.Es = Es1
+            gain = self.hist[-1] - Es1
+            if gain / self.hist[-1] < tol or (excess_tol > 0 and gain < excess_tol * (Es1 - 4.0)):
+                self.small += 1  # converged only after an uncut step with the lightest scaffold ("Stopping")
+                if t >= full_step and self.w_scaf > self.w_min:
+                    self.w_scaf = self.w_min
+                    continue
+                if t >= full_step or self.small >= STALL_ITERS:
+                    self.hist.append(Es1)
+                    self.converged = t >= full_step
+                    self.stop = "converged" if t >= full_step else "stalled at the barrier"
+                    break
+            else:
+                self.small = 0
+            # relax the scaffold while Newton steps go through uncut ("Scaffold weight")
+            self.w_scaf = (max(self.w_scaf / SCAFFOLD_ADAPT, self.w_min) if t >= full_step
+                           else min(self.w_scaf * SCAFFOLD_ADAPT, self.w_max))
+            if pause_excess > 0 and gain < pause_excess * (Es1 - 4.0):
+                return False
+        self.done = True
+        return True
+
+    def report(self) -> dict:
+        """The JSON-able report (``stop`` says "paused" while the polish has not stopped)."""
+        hist = self.hist
+        return {"iterations": self.it, "converged": self.converged, "stop": self.stop if self.done else "paused",
+                "energy_start": float(hist[0] / 4 if hist else np.nan),
+                "energy_end": float((hist[-1] if self.done or not hist else self.Es) / 4 if hist else np.nan),
+                "factorizations": self.refactorizations, "backend": self.backend, "seconds": round(self.seconds, 3)}
