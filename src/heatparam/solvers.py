@@ -97,6 +97,12 @@ class Factor:
             return Factor(T, self.backend)
         return Factor(A, self.backend)
 
+    def rebuild_matrix(self) -> sp.spmatrix | None:
+        """The matrix from which ``Factor(matrix, backend)`` makes this very factor again (PARDISO: the analysed
+        pattern with the current values, explicit zeros included), or None where this object keeps no matrix (the
+        caller keeps the one it factorized)."""
+        return self._T if self.backend == "pardiso" else None
+
     def solve(self, b: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Solve A x = b for b (n,) or (n,k) float64; returns x, a new array of b's shape or ``out``.
 
