@@ -119,8 +119,8 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat,
         rep["reason"] = "requested (seams='holes')"
     rep["used"] = True
     warning = (f"the map has seams: {len(paths)} cut(s), {sum(lengths):.6g} long in all, join the holes to the border "
-               f"(iso mean {iso:.4f} → {iso_s:.4f}); the OBJ's vt rows split along them (seams='none': one uncut "
-               "piece)")
+               f"(iso mean {iso:.4f}{' where its polish paused' if paused else ''} → {iso_s:.4f}); the OBJ's vt rows "
+               "split along them (seams='none': one uncut piece)")
     return SeamResult(cut, Cut(cut_surface, src, paths), rep, [*cut.warnings, warning], flat)
 
 
