@@ -46,8 +46,9 @@ class SeamResult(NamedTuple):
 
 
 def seam_pause(surface: Surface, opts) -> float:
-    """The ``pause_excess`` of the flattening without seams: ``SEAM_PAUSE_EXCESS`` when ``seams auto`` may try the
-    cut-open mesh (holes, a refined map), so that a trial the map will not keep is not polished to the end; else 0."""
+    """The ``pause_excess`` of the two trial flattenings of ``surface`` (without and with seams):
+    ``SEAM_PAUSE_EXCESS`` when ``seams auto`` may try the cut-open mesh (holes, a refined map), so that a trial the
+    map will not keep is not polished to the end; else 0 (``holes`` keeps the cut map, ``none`` tries nothing)."""
     auto = opts.seams == "auto" and opts.refine != "none" and surface.info.n_holes > 0
     return SEAM_PAUSE_EXCESS if auto else 0.0
 
@@ -89,8 +90,7 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat,
         with prog.stage("seams"):
             x, rep["uncut_start"] = open_slits(flat.uv[src], Fs, src)
         starts = None if x is None else {"uncut": x}
-    pause = SEAM_PAUSE_EXCESS if opts.seams == "auto" else 0.0
-    cut = flatten(cut_surface, opts, prog, True, starts, pause)
+    cut = flatten(cut_surface, opts, prog, True, starts, seam_pause(surface, opts))
     if opts.seams == "auto":
         better, flat, cut = _decide(flat, cut)
     else:

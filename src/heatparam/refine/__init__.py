@@ -107,8 +107,8 @@ class Refinement:
                  surface: tuple[np.ndarray, np.ndarray] | None = None,
                  extra_starts: dict[str, np.ndarray] | None = None, pause_excess: float = 0.0):
         t0 = time.perf_counter()
-        self.params = params = RefineParams() if params is None else params
-        self.V, self.F, self.progress = V, F, progress
+        params = RefineParams() if params is None else params
+        self.F, self.progress = F, progress
         disk = build_disk(V, F)
         g, area = surface if surface is not None else surface_gradients(V, F)
         self.g = g

@@ -115,9 +115,7 @@ def repair_flips(x: np.ndarray, ref: np.ndarray, F: np.ndarray, g: np.ndarray, l
     for r in range(1, REPAIR_ROUNDS + 1):
         grow = np.zeros(n, dtype=bool)
         grow[F[bad].ravel()] = True
-        for _ in range(REPAIR_RINGS):
-            grow |= adj @ grow.astype(np.int8) > 0
-        region |= grow
+        region |= grow_rings(grow, adj, REPAIR_RINGS)
         free = region & ~locked
         fi, fx = np.flatnonzero(free), np.flatnonzero(~free)
         Lf = L[fi]
@@ -127,22 +125,27 @@ def repair_flips(x: np.ndarray, ref: np.ndarray, F: np.ndarray, g: np.ndarray, l
             return y, first, r
     return None, first, REPAIR_ROUNDS
 
+def grow_rings(mask: np.ndarray, adj: sp.spmatrix, rings: int) -> np.ndarray:
+    """``mask`` (n,) bool grown by ``rings`` rings of the vertex adjacency ``adj`` (n,n), a new array."""
+    for _ in range(rings):
+        mask = mask | (adj @ mask.astype(np.int32) > 0)
+    return mask
+
 def untangle_flips(y: np.ndarray, V: np.ndarray, F: np.ndarray, g: np.ndarray, locked: np.ndarray
                    ) -> tuple[np.ndarray | None, int]:
     """:func:`heatparam.refine.untangle.untangle` of the flipped faces' ``REPAIR_RINGS``-ring neighbourhood of the
     layout ``y`` (n,2) (``locked`` (n,) bool vertices held), grown by ``REPAIR_RINGS`` rings while flips remain,
     at most 3 times. Returns (layout or None, minimizations run)."""
+    import igl
+
     area = face_areas(V, F)
     bad = det(jacobians(y, F, g)) <= 0
-    adj = sp.csr_matrix((np.ones(6 * len(F), dtype=np.int32), (np.repeat(F, 2, axis=1).ravel(),
-                                                               F[:, [1, 2, 0, 2, 0, 1]].ravel())),
-                        shape=(len(y), len(y)))
+    adj = igl.adjacency_matrix(F)
     region = np.zeros(len(y), dtype=bool)
     region[F[bad].ravel()] = True
     total = 0
     for _ in range(3):
-        for _ in range(REPAIR_RINGS):
-            region |= adj @ region.astype(np.int32) > 0
+        region = grow_rings(region, adj, REPAIR_RINGS)
         z, r = untangle(y, F, g, area, region & ~locked)
         total += r
         if z is not None:

@@ -255,8 +255,6 @@ class Polish:
             self.hist.append(self.Es)
             self.max_iters, self.converged = 0, True
             self.stop = "converged (the start is an isometry to within the tolerance)"
-        else:
-            self.pat = HessianPattern(F, n)
         self.guards = np.zeros((0, 3), dtype=np.int64) if guards is None else guards
         self.gg = hat_gradients(self.x[self.guards])  # any positive rest triangle will do: only det J's sign counts
         self.seconds = time.perf_counter() - t0
@@ -279,10 +277,12 @@ class Polish:
         self.pat = None
 
     def _unpark(self) -> None:
-        if getattr(self, "_parked", None) is not None:
+        """What the iterations need: the Hessian's pattern (built once, and again after a pause) and, after a
+        pause, the factorization :meth:`_park` freed."""
+        if self._parked is not None:
             backend, A = self._parked
             self.fac, self._parked = Factor(A, backend), None  # the same matrix: the same factor
-        if getattr(self, "pat", None) is None and self.max_iters > 0:
+        if self.pat is None and self.max_iters > 0:
             self.pat = HessianPattern(self.F, len(self.x))
 
     def _run(self, pause_excess: float) -> bool:
