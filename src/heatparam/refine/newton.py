@@ -2,8 +2,10 @@
 
 The scaffold (``scaffold.build_scaffold``) is rebuilt around the current layout at every iteration and measured
 against its own shape at its start (Jiang et al. 2017); each scaffold triangle weighs up to ``SCAFFOLD_WEIGHT`` ×
-the mean surface face, relaxed by ``SCAFFOLD_ADAPT`` after every uncut step. The line search (:func:`_line_search`)
-starts at 0.9 × the largest step for which no surface or scaffold triangle flips (Smith & Schaefer 2015). Converged
+the mean surface face, relaxed by ``SCAFFOLD_ADAPT`` after every uncut step: it shapes the Newton direction. The
+line search (:func:`_line_search`, on the surface energy) starts at the largest step that stays bijective: 0.9 ×
+the largest for which no surface triangle flips (Smith & Schaefer 2015), and no farther than the scaffold,
+re-triangulated where it would flip, allows (``scaffold.feasible_step``). Converged
 when an uncut step (≥ half the Newton step) lowers the surface energy by less than ``tol`` of it; the polish gives
 up after ``STALL_ITERS`` barrier-limited steps in a row that gain less.
 
@@ -19,7 +21,8 @@ boundary vertices (thin scaffold triangles): it is relaxed while Newton steps go
 after a cut step.
 
 The Hessian's sparsity pattern is built once (:class:`HessianPattern`); directions are solved with a reused
-factorization (:func:`newton_direction`); the line search is bounded by the flip barrier (``energy.max_step``).
+factorization (:func:`newton_direction`); the line search is bounded by the flip barrier (``energy.max_step``,
+``scaffold.feasible_step``).
 """
 
 from __future__ import annotations
@@ -38,11 +41,14 @@ from heatparam.refine.scaffold import (
     SCAFFOLD_WEIGHT_MIN,
     Scaffold,
     build_scaffold,
+    feasible_step,
     scaffold_matrix,
 )
 from heatparam.solvers import Factor, large_system_backend
 
 DECREMENT_TOL = 1e-3  # converged at once when the Newton decrement predicts less than this × tol relative decrease
+
+LINE_SEARCH_MAX = 2.0  # the line search's doubling of a full Newton step goes this far at most
 
 STALL_ITERS = 5  # the polish gives up after this many barrier-limited iterations in a row that gain < tol
 
@@ -193,16 +199,19 @@ def _safe_direction(sy: _System, fac, backend: str):
 
 
 def _barrier_step(x: np.ndarray, J: np.ndarray, dx: np.ndarray, F: np.ndarray, g: np.ndarray, w_surf: np.ndarray,
-                  sy: _System, guards: np.ndarray, gg: np.ndarray) -> tuple[float, np.ndarray] | None:
+                  sy: _System, guards: np.ndarray, gg: np.ndarray, loops: list[np.ndarray]
+                  ) -> tuple[float, np.ndarray] | None:
     """(step length t, direction d (n,2)) along the Newton direction ``dx`` (2n,): at most 0.9 × the largest step
-    for which no surface, scaffold or guard triangle flips (:func:`max_step`), then :func:`_line_search`; None
-    when no step lowers the energy."""
+    for which no surface or guard triangle flips (:func:`max_step`) and no farther than the chained scaffolds allow
+    (``scaffold.feasible_step``), then :func:`_line_search` on the surface energy (the scaffold shapes the
+    direction; the step may leave its triangulation behind); None when no step lowers the energy."""
     n = len(x)
     d = np.column_stack([dx[:n], dx[n:]])
-    D, Ds = jacobians(d, F, g), jacobians(np.vstack([d, np.zeros((4, 2))]), sy.sc.F, sy.gs)
-    tmax = 0.9 * min(max_step(J, D), max_step(sy.Js, Ds), max_step(jacobians(x, guards, gg),
-                                                                    jacobians(d, guards, gg)))
-    step = _line_search(J, D, w_surf, sy, Ds, tmax)
+    D = jacobians(d, F, g)
+    tmax = min(0.9 * max_step(J, D), 0.9 * max_step(jacobians(x, guards, gg), jacobians(d, guards, gg)))
+    tmax = feasible_step(x, d, loops, sy.sc, min(tmax, LINE_SEARCH_MAX))
+    surface_only = sy._replace(E0=symmetric_dirichlet(J, w_surf)[0], ws=np.zeros_like(sy.ws))
+    step = _line_search(J, D, w_surf, surface_only, np.zeros_like(sy.Js), tmax)
     return None if step is None else (step[0], d)
 
 
@@ -309,7 +318,7 @@ class Polish:
             if 0.5 * float(sy.rhs @ dx) <= DECREMENT_TOL * tol * sy.E0:
                 self.converged, self.stop = True, "converged"
                 break
-            step = _barrier_step(self.x, self.J, dx, F, g, w_surf, sy, self.guards, self.gg)
+            step = _barrier_step(self.x, self.J, dx, F, g, w_surf, sy, self.guards, self.gg, self.loops)
             if step is None:
                 self.stop = "no descent"
                 break

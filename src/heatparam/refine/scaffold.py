@@ -3,6 +3,14 @@
 At every iteration of the polish the outside of the outer loop and the inside of every hole are triangulated
 (constrained Delaunay, :func:`build_scaffold`) and join the energy with a small weight; the line search never lets
 a surface or scaffold triangle's det J cross zero, so boundaries slide freely but never cross.
+
+How far a step may go (:func:`feasible_step`): a scaffold triangle flipping is not a crossing — a thin triangle
+between three nearly collinear boundary vertices flips as soon as that stretch of boundary turns from convex to
+concave — so the scaffold is re-triangulated where the last one would flip and the step goes on along the same
+direction, up to ``SCAFFOLD_CHAIN`` scaffolds, while no boundary vertex comes closer to a boundary edge than
+``GAP_FRACTION`` of its distance at the start of the step (:func:`boundary_gaps`; what keeps the step from running
+the sides of a slit into each other). Every point of the step lies in a stretch where one valid scaffold has no
+flipped triangle, so the layout stays bijective.
 """
 
 from __future__ import annotations
@@ -11,8 +19,10 @@ from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 
 from heatparam.mesh.planar import triangulate
+from heatparam.refine.energy import hat_gradients, jacobians, max_step
 
 SCAFFOLD_WEIGHT = 1e-2  # largest energy weight of one scaffold triangle, relative to the mean surface face's
 
@@ -21,6 +31,18 @@ SCAFFOLD_ADAPT = 2.0  # after an uncut Newton step the scaffold weight is divide
 SCAFFOLD_WEIGHT_MIN = 1e-4  # ... within [SCAFFOLD_WEIGHT_MIN, 1] × SCAFFOLD_WEIGHT
 
 SCAFFOLD_MARGIN = 0.5  # the box extends this fraction of the layout's extent beyond it on every side
+
+#: At most this many scaffolds per step (:func:`feasible_step`); beetle's cut mesh from Tutte: 44 Newton
+#: iterations with one scaffold per step, 24 with up to 8 (16: 25, 3: 28), the same minimum
+SCAFFOLD_CHAIN = 8
+
+#: No step brings a boundary vertex closer to a boundary edge than this fraction of its distance at the step's
+#: start (beetle's cut mesh: 0.01 → 24 iterations, 0.1 → 26, 0.3 → 31, the same minimum; a floor of 1e-3 of an
+#: edge instead stopped the polish at a worse one: the minimum has slits narrower than that)
+GAP_FRACTION = 0.01
+
+#: Boundary edges searched per vertex by :func:`boundary_gaps` (nearest midpoints)
+GAP_NEIGHBOURS = 8
 
 def loop_ranges(loops: list[np.ndarray]) -> list[np.ndarray]:
     """Where each loop sits in ``np.concatenate(loops)``: one index range per loop."""
@@ -68,3 +90,53 @@ def scaffold_matrix(F: np.ndarray, blocks: np.ndarray, n: int) -> sp.csc_matrix:
     c = np.tile(ids, (1, 6)).ravel()
     ok = (r >= 0) & (c >= 0)
     return sp.csc_matrix((blocks.ravel()[ok], (r[ok], c[ok])), shape=(2 * n, 2 * n))
+
+
+def boundary_gaps(uv: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
+    """Per boundary vertex (``np.concatenate(loops)`` order): its distance (b,) to the nearest boundary edge that
+    does not end at it, among the ``GAP_NEIGHBOURS`` edges whose midpoints are nearest."""
+    ids = np.concatenate(loops)
+    E = ids[loop_edges(loop_ranges(loops))]
+    A, B = uv[E[:, 0]], uv[E[:, 1]]
+    _, j = cKDTree(0.5 * (A + B)).query(uv[ids], k=min(GAP_NEIGHBOURS, len(E)))
+    j = j.reshape(len(ids), -1)
+    P, a, ab = uv[ids][:, None], A[j], B[j] - A[j]
+    s = np.clip(np.einsum("ijk,ijk->ij", P - a, ab) / np.maximum(np.einsum("ijk,ijk->ij", ab, ab), 1e-300), 0, 1)
+    dist = np.linalg.norm(P - (a + s[..., None] * ab), axis=2)
+    dist[(E[j, 0] == ids[:, None]) | (E[j, 1] == ids[:, None])] = np.inf
+    return dist.min(axis=1)
+
+
+def feasible_step(uv: np.ndarray, d: np.ndarray, loops: list[np.ndarray], sc: Scaffold, target: float) -> float:
+    """How far along the direction ``d`` (n,2) the layout ``uv`` (n,2) stays bijective (module docstring).
+
+    Starts with the scaffold ``sc`` of ``uv``: 0.9 × the largest step before one of its triangles flips, then a
+    new scaffold there, and so on (at most ``SCAFFOLD_CHAIN``) until ``target`` is reached; a stretch that brings a
+    boundary vertex closer to the boundary than ``GAP_FRACTION`` of its gap at ``uv`` is halved until it does not,
+    and ends the chain. Returns t
+    such that every point of [0, t] is bijective (surface flips are the caller's: ``energy.max_step``).
+    """
+    floor = GAP_FRACTION * boundary_gaps(uv, loops)
+    zero = np.zeros((4, 2))
+    t = 0.0
+    for k in range(SCAFFOLD_CHAIN):
+        x = uv + t * d
+        if k:
+            try:
+                sc = build_scaffold(x, loops)
+            except ValueError:  # touching to round-off: stop where the last scaffold held
+                return t
+        xs = np.vstack([x, sc.box])
+        gs = hat_gradients(xs[sc.F])
+        dt = min(0.9 * max_step(jacobians(xs, sc.F, gs), jacobians(np.vstack([d, zero]), sc.F, gs)), target)
+        full = dt
+        for _ in range(40):
+            if (boundary_gaps(uv + (t + dt) * d, loops) >= floor).all():
+                break
+            dt *= 0.5
+        else:
+            return t
+        t += dt
+        if dt < full or t >= target:  # held back by a gap, or far enough
+            return t
+    return t
