@@ -1,16 +1,17 @@
 """Global bijectivity by a scaffold (Jiang et al. 2017): the rest of a box around the layout, triangulated.
 
 At every iteration of the polish the outside of the outer loop and the inside of every hole are triangulated
-(constrained Delaunay, :func:`build_scaffold`) and join the energy with a small weight; the line search never lets
-a surface or scaffold triangle's det J cross zero, so boundaries slide freely but never cross.
+(constrained Delaunay, :func:`build_scaffold`) and join the energy with a small weight; no step lets a surface
+triangle's det J cross zero, nor one of the scaffold it is in, so boundaries slide freely but never cross.
 
 How far a step may go (:func:`feasible_step`): a scaffold triangle flipping is not a crossing — a thin triangle
 between three nearly collinear boundary vertices flips as soon as that stretch of boundary turns from convex to
-concave — so the scaffold is re-triangulated where the last one would flip and the step goes on along the same
-direction, up to ``SCAFFOLD_CHAIN`` scaffolds, while no boundary vertex comes closer to a boundary edge than
-``GAP_FRACTION`` of its distance at the start of the step (:func:`boundary_gaps`; what keeps the step from running
-the sides of a slit into each other). Every point of the step lies in a stretch where one valid scaffold has no
-flipped triangle, so the layout stays bijective.
+concave — so the step goes to 0.9 of the first scaffold's flip, and where that is short of the Newton step the
+scaffold is re-triangulated there and the step goes on along the same direction, up to ``SCAFFOLD_CHAIN``
+scaffolds, while no boundary vertex comes closer to a boundary edge than ``GAP_FRACTION`` of its distance at the
+start of the step (:func:`boundary_gaps`; what keeps a chain from running the sides of a slit into each other to
+round-off). Every point of the step lies in a stretch where one valid scaffold has no flipped triangle, so the
+layout stays bijective.
 """
 
 from __future__ import annotations
@@ -33,16 +34,19 @@ SCAFFOLD_WEIGHT_MIN = 1e-4  # ... within [SCAFFOLD_WEIGHT_MIN, 1] × SCAFFOLD_WE
 SCAFFOLD_MARGIN = 0.5  # the box extends this fraction of the layout's extent beyond it on every side
 
 #: At most this many scaffolds per step (:func:`feasible_step`); beetle's cut mesh from Tutte: 44 Newton
-#: iterations with one scaffold per step, 24 with up to 8 (16: 25, 3: 28), the same minimum
+#: iterations with one scaffold per step, 24 with up to 8, the same minimum (docs/refine.md, "How far a step may go")
 SCAFFOLD_CHAIN = 8
 
-#: No step brings a boundary vertex closer to a boundary edge than this fraction of its distance at the step's
-#: start (beetle's cut mesh: 0.01 → 24 iterations, 0.1 → 26, 0.3 → 31, the same minimum; a floor of 1e-3 of an
-#: edge instead stopped the polish at a worse one: the minimum has slits narrower than that)
+#: A chained step brings no boundary vertex closer to a boundary edge than this fraction of its distance at the
+#: step's start (beetle's cut mesh: 0.01 → 24 iterations, 0.1 → 26, 0.3 → 31, the same minimum; a floor of 1e-3
+#: of an edge instead stopped the polish at a worse one: the minimum has slits narrower than that)
 GAP_FRACTION = 0.01
 
 #: Boundary edges searched per vertex by :func:`boundary_gaps` (nearest midpoints)
 GAP_NEIGHBOURS = 8
+
+#: A re-triangulated stretch that comes too close is halved at most this many times, else the step ends before it
+GAP_HALVINGS = 4
 
 def loop_ranges(loops: list[np.ndarray]) -> list[np.ndarray]:
     """Where each loop sits in ``np.concatenate(loops)``: one index range per loop."""
@@ -110,13 +114,14 @@ def boundary_gaps(uv: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
 def feasible_step(uv: np.ndarray, d: np.ndarray, loops: list[np.ndarray], sc: Scaffold, target: float) -> float:
     """How far along the direction ``d`` (n,2) the layout ``uv`` (n,2) stays bijective (module docstring).
 
-    Starts with the scaffold ``sc`` of ``uv``: 0.9 × the largest step before one of its triangles flips, then a
-    new scaffold there, and so on (at most ``SCAFFOLD_CHAIN``) until ``target`` is reached; a stretch that brings a
-    boundary vertex closer to the boundary than ``GAP_FRACTION`` of its gap at ``uv`` is halved until it does not,
-    and ends the chain. Returns t
-    such that every point of [0, t] is bijective (surface flips are the caller's: ``energy.max_step``).
+    Starts with the scaffold ``sc`` of ``uv``: 0.9 × the largest step before one of its triangles flips (the
+    polish's classic fraction to the boundary), then a new scaffold there, and so on (at most
+    ``SCAFFOLD_CHAIN``) until ``target`` is reached. A re-triangulated stretch that brings a boundary vertex closer
+    to the boundary than ``GAP_FRACTION`` of its gap at ``uv`` (:func:`boundary_gaps`) is halved until it does not
+    (at most ``GAP_HALVINGS`` times, else dropped) and ends the chain. Returns t such that every point of [0, t] is
+    bijective (surface flips are the caller's: ``energy.max_step``).
     """
-    floor = GAP_FRACTION * boundary_gaps(uv, loops)
+    floor = None
     zero = np.zeros((4, 2))
     t = 0.0
     for k in range(SCAFFOLD_CHAIN):
@@ -128,15 +133,20 @@ def feasible_step(uv: np.ndarray, d: np.ndarray, loops: list[np.ndarray], sc: Sc
                 return t
         xs = np.vstack([x, sc.box])
         gs = hat_gradients(xs[sc.F])
-        dt = min(0.9 * max_step(jacobians(xs, sc.F, gs), jacobians(np.vstack([d, zero]), sc.F, gs)), target)
+        dt = min(0.9 * max_step(jacobians(xs, sc.F, gs), jacobians(np.vstack([d, zero]), sc.F, gs)), target - t)
         full = dt
-        for _ in range(40):
-            if (boundary_gaps(uv + (t + dt) * d, loops) >= floor).all():
-                break
-            dt *= 0.5
-        else:
-            return t
+        if k:  # the first scaffold's 0.9 rule alone is the classic fraction to the boundary
+            if floor is None:
+                floor = GAP_FRACTION * boundary_gaps(uv, loops)
+            for _ in range(GAP_HALVINGS):
+                if (boundary_gaps(x + dt * d, loops) >= floor).all():
+                    break
+                dt *= 0.5
+            else:
+                return t
+            if dt < full:
+                return t + dt
         t += dt
-        if dt < full or t >= target:  # held back by a gap, or far enough
+        if t >= target:
             return t
     return t
