@@ -7,7 +7,9 @@ checkout (e.g. ``git worktree add /tmp/before <commit>`` → ``/tmp/before/src``
 camelhead.off curved_cap_with_holes noisy_scan_part). Each mesh runs before, after, before, after (two runs each,
 alternating, so that a machine's drift hits both); ``pipeline.parameterize`` with default options, timed inside the
 process (no import time). Prints a markdown table: wall s of both runs, Newton iterations of the kept map and of the
-map without seams (when the seams stage ran), the polish's stop reason and final energy, iso mean, flips, crossings.
+map without seams (when the seams stage ran), the polish's stop reason and final energy, iso mean, flips, crossings
+(for an atlas: the charts' joint polish summed over components, its largest final energy, overlapping triangle
+pairs).
 """
 
 from __future__ import annotations
@@ -31,12 +33,18 @@ V, F, _ = load(p["mesh"])
 t = time.perf_counter()
 r = parameterize(V, F)
 w = time.perf_counter() - t
-m = r.report["method"]
-ref, wo = m["refine"], (m.get("without_seams") or {}).get("refine")
-print(json.dumps(dict(s=w, it=ref["polish"]["iterations"], start=ref["start"]["layout"], stop=ref["polish"]["stop"],
-                      E=ref["polish"]["energy_end"], seams=(m.get("seams") or {}).get("used"),
-                      wo_it=wo["polish"]["iterations"] if wo else None, iso=r.report["metrics"]["iso_mean"],
-                      flips=r.report["metrics"]["flips"], cross=r.report["metrics"]["boundary_crossings"])))
+m, met = r.report["method"], r.report["metrics"]
+if "atlas" in m:  # an atlas: the charts' joint polish of every component
+    jp = [c["joint_polish"] for c in m["atlas"]["components"] if c.get("joint_polish")]
+    out = dict(it=sum(j["iterations"] for j in jp), start=f"atlas, {met.get('charts')} charts",
+               stop="; ".join(sorted({j["stop"] for j in jp})), E=max(j["energy_end"] for j in jp), seams=None,
+               wo_it=None, cross=met.get("overlapping_triangle_pairs"))
+else:
+    ref, wo = m["refine"], (m.get("without_seams") or {}).get("refine")
+    out = dict(it=ref["polish"]["iterations"], start=ref["start"]["layout"], stop=ref["polish"]["stop"],
+               E=ref["polish"]["energy_end"], seams=(m.get("seams") or {}).get("used"),
+               wo_it=wo["polish"]["iterations"] if wo else None, cross=met["boundary_crossings"])
+print(json.dumps(dict(s=w, iso=met["iso_mean"], flips=met["flips"], **out)))
 """
 
 DEFAULT = ["halftunnel.off", "beetle.off", "camelhead.off", "curved_cap_with_holes", "noisy_scan_part"]

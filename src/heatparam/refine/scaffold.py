@@ -102,11 +102,14 @@ def boundary_gaps(uv: np.ndarray, loops: list[np.ndarray]) -> np.ndarray:
     ids = np.concatenate(loops)
     E = ids[loop_edges(loop_ranges(loops))]
     A, B = uv[E[:, 0]], uv[E[:, 1]]
-    _, j = cKDTree(0.5 * (A + B)).query(uv[ids], k=min(GAP_NEIGHBOURS, len(E)))
+    P = uv[ids]
+    _, j = cKDTree(0.5 * (A + B)).query(P, k=min(GAP_NEIGHBOURS, len(E)))
     j = j.reshape(len(ids), -1)
-    P, a, ab = uv[ids][:, None], A[j], B[j] - A[j]
-    s = np.clip(np.einsum("ijk,ijk->ij", P - a, ab) / np.maximum(np.einsum("ijk,ijk->ij", ab, ab), 1e-300), 0, 1)
-    dist = np.linalg.norm(P - (a + s[..., None] * ab), axis=2)
+    px, py = P[:, :1], P[:, 1:]  # (b,1): against the (b,k) candidate edges, coordinate by coordinate
+    ax, ay, bx, by = A[j, 0], A[j, 1], B[j, 0], B[j, 1]
+    ex, ey = bx - ax, by - ay
+    s = np.clip(((px - ax) * ex + (py - ay) * ey) / np.maximum(ex * ex + ey * ey, 1e-300), 0.0, 1.0)
+    dist = np.hypot(px - ax - s * ex, py - ay - s * ey)
     dist[(E[j, 0] == ids[:, None]) | (E[j, 1] == ids[:, None])] = np.inf
     return dist.min(axis=1)
 
