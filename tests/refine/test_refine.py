@@ -421,6 +421,25 @@ def test_coarse_to_fine_on_a_surface_with_holes_is_bijective():
     assert start.bijectivity(y, s.F, g) == (0, 0)
 
 
+def test_coarse_to_fine_drops_a_coarse_level_that_stalls_far_from_its_minimum():
+    """beetle.off cut open along its seams, from Tutte: the coarse polish stalls at the barrier keeping most of
+    the start's energy excess; its prolongation would be a poor start (92 fine iterations at 78k vertices instead
+    of 40), so the level is dropped and says why."""
+    from heatparam.mesh.seams import cut_open, hole_seams
+    from heatparam.pipeline.surface import Surface
+
+    surface = Surface.validated(*_load("beetle.off"))[0]
+    Vs, Fs, _ = cut_open(surface.V, surface.F, hole_seams(surface.V, surface.F, surface.info.boundary_loops))
+    disk = tutte.build_disk(Vs, Fs)
+    g, _ = energy.surface_gradients(Vs, Fs)
+    x0 = tutte.tutte(Vs, disk)[: len(Vs)]
+    y, info = multilevel.coarse_to_fine(Vs, Fs, x0, disk.loops, g, min_vertices=0, max_iters=200, tol=1e-6,
+                                        backend="auto")
+    cp = info["coarse_polish"]
+    assert y is None and not info["used"] and "coarse polish stopped" in info["reason"], info
+    assert not cp["converged"] and cp["energy_end"] - 1 > multilevel.COARSE_MIN_GAIN * (cp["energy_start"] - 1)
+
+
 def test_coarse_to_fine_untangles_what_the_mean_value_repair_cannot(monkeypatch):
     """halftunnel.off from its Tutte start with a 250-vertex coarse level: 3 prolongated faces beside the locked,
     non-convex border stay flipped after both mean value repairs; the untangler unflips them."""

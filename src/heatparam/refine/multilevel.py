@@ -28,6 +28,14 @@ REPAIR_ROUNDS = 12  # ... at most this many rounds
 
 MULTILEVEL_MIN_EXCESS = 1e-2  # coarse-to-fine only when the start's energy exceeds 1 (isometry) by more than this
 
+#: A coarse level that stops without converging and keeps more than this fraction of its start's energy excess over
+#: an isometry is dropped (the fine level polishes from the start): beetle upsampled (78k) cut open along its
+#: seams, from Tutte, stalled at the barrier at 25.7 from 26.0 (probably because its coarse triangles, made in the
+#: Tutte disk, where the two sides of a seam lie far apart, join points that coincide in 3D), and its prolongation
+#: took 92 fine Newton iterations (118 s; 159 s end to end); dropped: 40 from Tutte (57 s; 101 s), to a lower
+#: energy (1.000714 vs 1.000723)
+COARSE_MIN_GAIN = 0.5
+
 #: After a converged coarse level the fine polish stops at this multiple of ``refine_tol``: its start is already
 #: within ~0.5% of the minimum, and at 1e-6 its last 2 of 7 Newton iterations (camelhead↑182k, ~2.5 s each) gained
 #: < 1e-5 of the energy together and no metric to 4 digits (iso mean 2.05884 at 1e-4 and 1e-6; docs/refine.md)
@@ -195,6 +203,11 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
                                   guards=local[ears], label=f"coarse, {len(ids)} vertices")
     xc, cinfo = crun.x, crun.report()
     info.update(coarse_polish=cinfo, coarse_multilevel=cml, guards=int(len(ears)))
+    e0, e1 = cinfo["energy_start"], cinfo["energy_end"]
+    if not cinfo["converged"] and e1 - 1.0 > COARSE_MIN_GAIN * (e0 - 1.0):
+        return None, info | {"used": False, "seconds": round(time.perf_counter() - t0, 3),
+                             "reason": (f"the coarse polish stopped ({cinfo['stop']}) at energy {e1:.4g} from "
+                                        f"{e0:.4g}: its prolongation would be a poor start")}
     y = prolongate(x, x[ids], T, xc)
     y[ids] = xc
     z, flipped, rounds = repair_flips(y, x, F, g, locked)
