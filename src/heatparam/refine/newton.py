@@ -125,19 +125,11 @@ def newton_direction(H: sp.csc_matrix, rhs: np.ndarray, fac: Factor | None, back
     fac = Factor(H, backend) if fac is None else fac.refactor(H)
     return fac.solve(rhs), fac, 1
 
-def line_energy(t: float, J: np.ndarray, D: np.ndarray, w: np.ndarray, Js: np.ndarray, Ds: np.ndarray,
-                 ws: np.ndarray) -> float:
-    """Surface + scaffold energy at step t along the Jacobian directions D, Ds."""
-    return symmetric_dirichlet(J + t * D, w)[0] + symmetric_dirichlet(Js + t * Ds, ws)[0]
-
 class _System(NamedTuple):
-    """One Newton iteration's system around the layout: the scaffold, its rest gradients, weights and Jacobians,
-    the total energy E0, the Hessian H and the right-hand side (minus the gradient)."""
+    """One Newton iteration's system around the layout: the scaffold, the surface + scaffold energy E0, the
+    Hessian H and the right-hand side (minus the gradient)."""
 
     sc: Scaffold
-    gs: np.ndarray
-    ws: np.ndarray
-    Js: np.ndarray
     E0: float
     H: sp.csc_matrix
     rhs: np.ndarray
@@ -160,24 +152,24 @@ def _system(x: np.ndarray, J: np.ndarray, Es: float, F: np.ndarray, g: np.ndarra
     gr = scatter(gJ, F, g, n) + scatter(gJs, sc.F, gs, n + 4)[:n]
     rhs = -np.concatenate([gr[:, 0], gr[:, 1]])
     H = H + sp.identity(2 * n, format="csc") * (1e-9 * float(H.diagonal().mean()))  # rigid rotation
-    return _System(sc, gs, ws, Js, E0, H, rhs)
+    return _System(sc, E0, H, rhs)
 
 
-def _line_search(J: np.ndarray, D: np.ndarray, w_surf: np.ndarray, sy: _System, Ds: np.ndarray, tmax: float
+def _line_search(J: np.ndarray, D: np.ndarray, w_surf: np.ndarray, E0: float, tmax: float
                  ) -> tuple[float, float] | None:
-    """Step t and energy E1 < E0 along D: from min(1, tmax), halved until the energy decreases (None: no descent in
-    40 halvings); after a full step, doubled while that lowers the energy further (the 1/σ² terms are steep far
-    from the minimum, so the full Newton step undershoots)."""
+    """Step t and surface energy E1 < E0 along the Jacobian directions D: from min(1, tmax), halved until the
+    energy decreases (None: no descent in 40 halvings); after a full step, doubled while that lowers the energy
+    further (the 1/σ² terms are steep far from the minimum, so the full Newton step undershoots)."""
     t = min(1.0, tmax)
     for _ in range(40):
-        E1 = line_energy(t, J, D, w_surf, sy.Js, Ds, sy.ws)
-        if E1 < sy.E0:
+        E1 = symmetric_dirichlet(J + t * D, w_surf)[0]
+        if E1 < E0:
             break
         t *= 0.5
     else:
         return None
     while t >= 1.0 and 2 * t <= tmax:
-        E2 = line_energy(2 * t, J, D, w_surf, sy.Js, Ds, sy.ws)
+        E2 = symmetric_dirichlet(J + 2 * t * D, w_surf)[0]
         if not E2 < E1:
             break
         t, E1 = 2 * t, E2
@@ -198,20 +190,20 @@ def _safe_direction(sy: _System, fac, backend: str):
     return dx, fac, fresh
 
 
-def _barrier_step(x: np.ndarray, J: np.ndarray, dx: np.ndarray, F: np.ndarray, g: np.ndarray, w_surf: np.ndarray,
-                  sy: _System, guards: np.ndarray, gg: np.ndarray, loops: list[np.ndarray]
+def _barrier_step(x: np.ndarray, J: np.ndarray, Es: float, dx: np.ndarray, F: np.ndarray, g: np.ndarray,
+                  w_surf: np.ndarray, sc: Scaffold, guards: np.ndarray, gg: np.ndarray, loops: list[np.ndarray]
                   ) -> tuple[float, np.ndarray] | None:
     """(step length t, direction d (n,2)) along the Newton direction ``dx`` (2n,): at most 0.9 × the largest step
     for which no surface or guard triangle flips (:func:`max_step`) and no farther than the chained scaffolds allow
-    (``scaffold.feasible_step``), then :func:`_line_search` on the surface energy (the scaffold shapes the
-    direction; the step may leave its triangulation behind); None when no step lowers the energy."""
+    (``scaffold.feasible_step``, starting from the iteration's scaffold ``sc``), then :func:`_line_search` on the
+    surface energy ``Es`` (the scaffold shapes the direction; the step may leave its triangulation behind); None
+    when no step lowers the energy."""
     n = len(x)
     d = np.column_stack([dx[:n], dx[n:]])
     D = jacobians(d, F, g)
     tmax = min(0.9 * max_step(J, D), 0.9 * max_step(jacobians(x, guards, gg), jacobians(d, guards, gg)))
-    tmax = feasible_step(x, d, loops, sy.sc, min(tmax, LINE_SEARCH_MAX))
-    surface_only = sy._replace(E0=symmetric_dirichlet(J, w_surf)[0], ws=np.zeros_like(sy.ws))
-    step = _line_search(J, D, w_surf, surface_only, np.zeros_like(sy.Js), tmax)
+    tmax = feasible_step(x, d, loops, sc, min(tmax, LINE_SEARCH_MAX))
+    step = _line_search(J, D, w_surf, Es, tmax)
     return None if step is None else (step[0], d)
 
 
@@ -318,7 +310,7 @@ class Polish:
             if 0.5 * float(sy.rhs @ dx) <= DECREMENT_TOL * tol * sy.E0:
                 self.converged, self.stop = True, "converged"
                 break
-            step = _barrier_step(self.x, self.J, dx, F, g, w_surf, sy, self.guards, self.gg, self.loops)
+            step = _barrier_step(self.x, self.J, self.Es, dx, F, g, w_surf, sy.sc, self.guards, self.gg, self.loops)
             if step is None:
                 self.stop = "no descent"
                 break
