@@ -38,12 +38,14 @@ ISOMETRIC_START_EXCESS = 1e-3
 #: full ones); a coarse layout that does not fold proves nothing, and the full heat stage runs (beetle: 0 flips
 #: coarse, 1 full).
 FOLD_CHECK_MIN_VERTICES = 30_000
-#: ``seams auto`` tries the cut-open mesh only when the map's mean isometric distortion exceeds 1 by more than this
-#: (developable parts with holes are at 1.0000 already: nothing to gain) ...
-SEAM_TRY_EXCESS = 0.01
-#: ... and keeps it only when it lowers the mean isometric distortion by at least this fraction (measured,
-#: BENCHMARKS.md §6: halftunnel 1.536 → 1.18, beetle 1.080 → 1.02).
+#: ``seams auto`` keeps the cut-open map only when it lowers the mean isometric distortion by at least this fraction
+#: (measured, BENCHMARKS.md §6: halftunnel 1.536 → 1.18, beetle 1.080 → 1.02) ...
 SEAM_MIN_GAIN = 0.02
+#: ... so it tries the cut-open mesh only when the map without seams exceeds 1 by more than this (2.04%): every map's
+#: mean isometric distortion is at least 1 (max(σ1, 1/σ2) ≥ 1 on every face), so below 1 / (1 - SEAM_MIN_GAIN) no
+#: cut map can be kept and the trial is wasted. (It was 1% before 2026-12-02: the noisy parts with holes, iso mean
+#: 1.013, flattened the cut mesh for nothing; 29 s of 75 s on a 191k-vertex one, BENCHMARKS.md §12d.)
+SEAM_TRY_EXCESS = 1.0 / (1.0 - SEAM_MIN_GAIN) - 1.0
 #: ``seams auto`` decides on paused polishes: each of the two flattenings (without and with seams) pauses once a
 #: Newton iteration gains less than this fraction of the energy's excess over an isometry ...
 SEAM_PAUSE_EXCESS = 0.03
@@ -123,9 +125,10 @@ OPTIONS: tuple[Option, ...] = (
            "polished together from LSCM unless this is always: BENCHMARKS §10)",
            MDS_START_MODES, flag="--mds-start"),
     Option("seams", "auto", "choice", "cut holes open to the border along the shortest surface paths: auto = when "
-           "the map without seams is more than {SEAM_TRY_EXCESS:.0%} from an isometry, keep the cut one if it is "
-           "bijective and lowers the mean isometric distortion by {SEAM_MIN_GAIN:.0%} or more (reported, with a "
-           "warning); holes = always; none = never, one uncut piece", SEAM_MODES, flag="--seams"),
+           "the map without seams is more than {SEAM_TRY_EXCESS:.2%} from an isometry (closer, no cut map "
+           "could gain enough), keep the cut one if it is bijective and lowers the mean isometric distortion by "
+           "{SEAM_MIN_GAIN:.0%} or more (reported, with a warning); holes = always; none = never, one uncut piece",
+           SEAM_MODES, flag="--seams"),
     Option("stress", "none", "choice", "smacof = stress majorization (SMACOF, Guttman transform) of the raw stress "
            "of Eq. 1 on the geodesic distances MDS used, applied to the MDS layout before refine (BENCHMARKS.md "
            "§7); none = the MDS layout as is", STRESS_MODES, flag="--stress"),

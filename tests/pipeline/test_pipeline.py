@@ -295,16 +295,36 @@ def test_seams_auto_leaves_near_isometric_parts_with_holes_uncut():
     assert datasets.layout_error(h.uv, sh.uv_true[h.uv_vertex]) < 1e-3
 
 
-def _noisy_cylinder_with_holes():
+def _noisy_cylinder_with_holes(noise: float = 0.15):
     s = datasets.cylinder_with_holes()
-    return s.V + 0.1 * 0.045 * np.random.default_rng(0).standard_normal(s.V.shape), s.F
+    return s.V + noise * 0.045 * np.random.default_rng(0).standard_normal(s.V.shape), s.F
+
+
+def test_seams_not_tried_where_no_cut_map_could_be_kept(monkeypatch):
+    """An iso mean is at least 1, so a cut map can only be kept (2% lower) when the map without seams is above
+    1 / 0.98: the noisy cylinder with holes (noise 0.1 × the edge length, iso mean 1.013) is not cut open at all
+    now; with the old threshold (1%) the cut trial ran and lost, and the kept map is the same bit for bit."""
+    from heatparam import options
+    from heatparam.pipeline import seams
+
+    V, F = _noisy_cylinder_with_holes(0.1)
+    r = parameterize(V, F)
+    s = r.report["method"]["seams"]
+    assert not s["used"] and "iso_mean_with" not in s and "no cut map could" in s["reason"]
+    assert 1.01 < r.report["metrics"]["iso_mean"] <= 1 + options.SEAM_TRY_EXCESS
+    monkeypatch.setattr(seams, "SEAM_TRY_EXCESS", 0.01)
+    old = parameterize(V, F)
+    so = old.report["method"]["seams"]
+    assert not so["used"] and so["iso_mean_with"] > so["iso_mean_without"] * (1 - options.SEAM_MIN_GAIN)
+    assert np.array_equal(r.uv, old.uv) and r.report["metrics"] == old.report["metrics"]
 
 
 @pytest.mark.parametrize("case", ["halftunnel", "noisy cylinder"])
 def test_seams_decided_on_paused_polishes_keep_the_map(case, halftunnel, halftunnel_maps, monkeypatch):
     """``seams auto`` decides where the trial polishes paused when no finished value could change the answer: the
     kept map is the one decided on finished polishes, bit for bit. halftunnel keeps the cut map (the uncut polish
-    paused after 8 of its 38 iterations), the noisy cylinder with holes keeps the uncut one (the cut trial paused)."""
+    paused after 8 of its 38 iterations), the noisy cylinder with holes (noise 0.15 × the edge length, iso mean 1.030)
+    keeps the uncut one (the cut trial paused)."""
     from heatparam.pipeline import seams
 
     V, F = halftunnel if case == "halftunnel" else _noisy_cylinder_with_holes()
