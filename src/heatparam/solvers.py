@@ -48,13 +48,19 @@ def large_system_backend(unknowns: int, backend: str = "auto", min_unknowns: int
 
 
 class Factor:
-    """A factorization of an SPD matrix A (n,n); ``solve(b)`` accepts (n,) or (n,k) right-hand sides."""
+    """A factorization of an SPD matrix A (n,n); ``solve(b)`` accepts (n,) or (n,k) right-hand sides.
 
-    def __init__(self, A: sp.spmatrix, backend: str = "auto"):
+    upper : A is given as its upper triangle, sorted CSR (what PARDISO reads; only with the ``pardiso`` backend):
+        it is used as it is, without a ``triu`` copy of a full matrix.
+    """
+
+    def __init__(self, A: sp.spmatrix, backend: str = "auto", upper: bool = False):
         if backend == "auto":
             backend = available_backends()[0]
         if backend not in available_backends():
             raise ValueError(f"solver backend {backend!r} is not installed (available: {available_backends()})")
+        if upper and backend != "pardiso":
+            raise ValueError(f"an upper-triangle matrix needs the pardiso backend, not {backend!r}")
         self.backend = backend
         self.n = A.shape[0]
         if backend == "cholespy":
@@ -72,7 +78,7 @@ class Factor:
             prepare_mkl()  # before the import: pypardiso makes a solver at import time
             import pypardiso
 
-            self._T = _upper(A)  # PARDISO reads the upper triangle of a symmetric matrix
+            self._T = A if upper else _upper(A)  # PARDISO reads the upper triangle of a symmetric matrix
             self._f = pypardiso.PyPardisoSolver(mtype=2)  # real symmetric positive definite
             _remember_mkl(self._f)
             self._f.factorize(self._T)
@@ -80,22 +86,26 @@ class Factor:
             # columns on camelhead↑180k's heat matrix); a Cholesky of an SPD matrix needs none (residual 1e-15)
             self._f.set_iparm(8, 0)
 
-    def refactor(self, A: sp.spmatrix) -> Factor:
-        """A factorization of A (same size as this one's matrix), reusing what can be reused.
+    def refactor(self, A: sp.spmatrix, upper: bool = False) -> Factor:
+        """A factorization of A (same size as this one's matrix; ``upper`` as for :class:`Factor`), reusing what
+        can be reused.
 
         PARDISO keeps its symbolic analysis (the fill-reducing ordering: 0.67 s of the 1.3 s factorization of the
         363k-unknown camelhead↑180k Hessian) and refactorizes this object in place when A's sparsity pattern lies
         within the analysed one (A's values are placed on that pattern, explicit zeros elsewhere). Otherwise the
         new factor is analysed on the union of both patterns, so that a pattern which alternates between a few
-        variants (the polish's scaffold) settles after a couple of calls. Other backends: a new :class:`Factor`.
+        variants settles after a couple of calls. (The polish's scaffold is re-triangulated at every iteration and
+        its long edges across holes and the outer band change, so there nearly every call is analysed anew:
+        beetle's cut mesh 26 of 26, 2026-12-02; padding the pattern with each boundary vertex's 16 nearest
+        boundary vertices did not change that.) Other backends: a new :class:`Factor`.
         """
         if self.backend == "pardiso" and A.shape == self._T.shape:
-            T = on_union(self._T, _upper(A))
+            T = on_union(self._T, A if upper else _upper(A))
             if T.nnz == self._T.nnz and _pardiso_numeric(self._f, T):
                 self._T = T
                 return self
-            return Factor(T, self.backend)
-        return Factor(A, self.backend)
+            return Factor(T, self.backend, upper=True)
+        return Factor(A, self.backend, upper=upper)
 
     def rebuild_matrix(self) -> sp.spmatrix | None:
         """The matrix from which ``Factor(matrix, backend)`` makes this very factor again (PARDISO: the analysed
@@ -139,16 +149,19 @@ def _upper(A: sp.spmatrix) -> sp.csr_matrix:
     return T
 
 
+def _csr_keys(M: sp.csr_matrix) -> np.ndarray:
+    """(nnz,) int64 row-major keys row × ncols + column of a sorted CSR matrix's entries (ascending)."""
+    return np.repeat(np.arange(M.shape[0], dtype=np.int64), np.diff(M.indptr)) * M.shape[1] + M.indices
+
+
 def on_union(P: sp.csr_matrix, T: sp.csr_matrix) -> sp.csr_matrix:
     """T's values on the union of the sparsity patterns of P and T (sorted CSR, same shape), explicit zeros
     where only P has entries."""
     ones = lambda M: sp.csr_matrix((np.ones(M.nnz), M.indices, M.indptr), shape=M.shape)  # noqa: E731
     U = ones(P) + ones(T)  # values ≥ 1: no entry of the union cancels away
     U.sort_indices()
-    n = U.shape[1]
-    key = lambda M: np.repeat(np.arange(M.shape[0], dtype=np.int64), np.diff(M.indptr)) * n + M.indices  # noqa: E731
     data = np.zeros(U.nnz)
-    data[np.searchsorted(key(U), key(T))] = T.data
+    data[np.searchsorted(_csr_keys(U), _csr_keys(T))] = T.data
     return sp.csr_matrix((data, U.indices, U.indptr), shape=U.shape)
 
 

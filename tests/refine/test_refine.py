@@ -308,6 +308,13 @@ def test_hessian_pattern_assembles_like_coo(make):
     H = newton.HessianPattern(F, n).matrix(vals)
     assert H.shape == ref.shape and H.nnz == ref.nnz and H.has_sorted_indices
     assert abs(H - ref).max() <= 1e-12
+    # upper=True (what PARDISO reads): exactly the upper entries of the full matrix, bit for bit, as sorted CSR
+    U = newton.HessianPattern(F, n, upper=True).matrix(vals)
+    T = sp.triu(H, format="csr")
+    T.sort_indices()
+    assert U.format == "csr" and U.has_sorted_indices and U.shape == H.shape
+    assert np.array_equal(U.indptr, T.indptr) and np.array_equal(U.indices, T.indices)
+    assert np.array_equal(U.data, T.data)
 
 
 def test_polish_of_an_isometry_converges_at_once():
