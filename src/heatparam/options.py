@@ -32,12 +32,18 @@ BACKENDS = ("auto", "cholespy", "scipy", "pardiso")
 #: (docs/refine.md), so skipping changed no start.
 ISOMETRIC_START_EXCESS = 1e-3
 #: Meshes of at least this many vertices whose LSCM start is bijective but not isometric get a fold check: the
-#: fill, geodesics and MDS run first on a coarse mesh (1/8 of the vertices, triangulated in the LSCM layout); if
+#: fill, geodesics and MDS run first on a coarse mesh (FOLD_CHECK_VERTICES, triangulated in the LSCM layout); if
 #: more of its triangles are flipped than the refinement would repair, the full one is not computed. Folding is a
 #: property of the shape (camelhead: 53% of the coarse triangles flipped at 11k and 51% at 45k, 59% and 58% of the
 #: full ones); a coarse layout that does not fold proves nothing, and the full heat stage runs (beetle: 0 flips
 #: coarse, 1 full).
 FOLD_CHECK_MIN_VERTICES = 30_000
+#: ... on a coarse mesh of about this many vertices (plus every boundary vertex), whatever the mesh's size: it was
+#: 1/8 of the vertices until 2026-12-02, and 8k gave the same verdict on every mesh of issue 17's set and beetle↑78k /
+#: camelhead↑45k (camelhead↑182k: 50% of the coarse triangles flipped at 10k vertices, 45% at 28k; the noisy parts
+#: and beetle↑: none at either) in 2-3.5× less time (beetle↑311k 8.6 → 2.4 s, the noisy cylinder 4.3 → 1.7 s). Coarser
+#: checks see less of a scan's noise, so they err towards running the heat stage, never towards skipping it.
+FOLD_CHECK_VERTICES = 8_000
 #: ``seams auto`` keeps the cut-open map only when it lowers the mean isometric distortion by at least this fraction
 #: (measured, BENCHMARKS.md §6: halftunnel 1.536 → 1.18, beetle 1.080 → 1.02) ...
 SEAM_MIN_GAIN = 0.02
@@ -118,8 +124,9 @@ OPTIONS: tuple[Option, ...] = (
     Option("mds_start", "auto", "choice", "with refine sd: auto skips the fill, the heat geodesics and MDS (a) when "
            "the LSCM layout is already bijective and within {ISOMETRIC_START_EXCESS:.1%} of an isometry in energy "
            "(developable parts), (b) on meshes of >= {FOLD_CHECK_MIN_VERTICES} vertices, when the MDS layout of a "
-           "1/8 coarse mesh folds beyond repair (curved scans): the same map, faster, and the report's "
-           "stress_rel_rms is then null; never when fill, geodesics, landmarks or stress is set explicitly. "
+           "coarse mesh (~{FOLD_CHECK_VERTICES} vertices) folds beyond repair (curved scans): the same map, "
+           "faster, and the report's stress_rel_rms is then null; never when fill, geodesics, landmarks or stress "
+           "is set explicitly. "
            "always = compute them as a start candidate anyway (in an atlas: every chart through the pipeline "
            "instead of the charts' joint polish); never = skip them (LSCM or Tutte starts; an atlas's charts are "
            "polished together from LSCM unless this is always: BENCHMARKS §10)",
@@ -157,8 +164,8 @@ OPTIONS: tuple[Option, ...] = (
 
 _BY_NAME = {o.name: o for o in OPTIONS}
 _CONSTANTS = {"ALL_PAIRS_MAX": ALL_PAIRS_MAX, "ISOMETRIC_START_EXCESS": ISOMETRIC_START_EXCESS,
-              "FOLD_CHECK_MIN_VERTICES": FOLD_CHECK_MIN_VERTICES, "SEAM_TRY_EXCESS": SEAM_TRY_EXCESS,
-              "SEAM_MIN_GAIN": SEAM_MIN_GAIN}
+              "FOLD_CHECK_MIN_VERTICES": FOLD_CHECK_MIN_VERTICES, "FOLD_CHECK_VERTICES": FOLD_CHECK_VERTICES,
+              "SEAM_TRY_EXCESS": SEAM_TRY_EXCESS, "SEAM_MIN_GAIN": SEAM_MIN_GAIN}
 
 
 def help_text(opt: Option) -> str:

@@ -4,8 +4,9 @@ The refinement starts from the lower-energy bijective layout of MDS and LSCM. Tw
 win are recognised before it is computed:
 
 (a) the LSCM layout is bijective and within ``ISOMETRIC_START_EXCESS`` of an isometry (developable parts);
-(b) on meshes of at least ``FOLD_CHECK_MIN_VERTICES``, the MDS layout of a coarse mesh (1/8 of the vertices,
-    triangulated in the LSCM layout) folds beyond what the refinement repairs (curved scans): the full one folds too;
+(b) on meshes of at least ``FOLD_CHECK_MIN_VERTICES``, the MDS layout of a coarse mesh (``FOLD_CHECK_VERTICES``,
+    ~8k, triangulated in the LSCM layout) folds beyond what the refinement repairs (curved scans): the full one
+    folds too;
 (c) the surface is the seams stage's cut-open mesh: it is not filled (a fill would close the seams), geodesics run
     around the slits, and MDS lost to LSCM or Tutte on every seamed map measured (beetle: 4106 flipped faces;
     halftunnel: energy 1.435 vs LSCM 1.218; a 200k mask scan: not bijective).
@@ -24,11 +25,11 @@ from heatparam import metrics
 from heatparam.errors import HeatparamError
 from heatparam.layout.tutte import build_disk
 from heatparam.mesh.validate import validate_mesh
-from heatparam.options import FOLD_CHECK_MIN_VERTICES, ISOMETRIC_START_EXCESS
+from heatparam.options import FOLD_CHECK_MIN_VERTICES, FOLD_CHECK_VERTICES, ISOMETRIC_START_EXCESS
 from heatparam.pipeline.heat_stage import decide_fill, mds_map
 from heatparam.pipeline.surface import Surface
 from heatparam.progress import Progress
-from heatparam.refine.multilevel import COARSE_FRACTION, COARSE_MIN, coarse_mesh, coarse_vertices
+from heatparam.refine.multilevel import coarse_mesh, coarse_vertices
 from heatparam.refine.start import MDS_REPAIR_MAX_FRACTION, LscmStart, lscm_start
 
 
@@ -84,7 +85,7 @@ def fold_check(surface: Surface, uv: np.ndarray, opts) -> dict:
     try:
         disk = build_disk(V, F)
         loops = disk.loops
-        ids = coarse_vertices(V, F, loops, max(int(len(V) * COARSE_FRACTION), COARSE_MIN))
+        ids = coarse_vertices(V, F, loops, FOLD_CHECK_VERTICES)
         T = coarse_mesh(uv, loops, ids)
         coarse = Surface(V[ids], T, validate_mesh(V[ids], T))
         quiet = Progress(False)
