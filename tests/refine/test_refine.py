@@ -317,6 +317,25 @@ def test_hessian_pattern_assembles_like_coo(make):
     assert np.array_equal(U.data, T.data)
 
 
+@pytest.mark.parametrize("upper", [False, True])
+def test_hessian_assembled_in_chunks_is_the_same_matrix(upper):
+    """``HessianPattern.assemble`` (sd_newton_blocks on chunks of faces, summed in place) gives the gradient and the
+    matrix of one ``sd_newton_blocks`` + ``matrix`` call bit for bit, whatever the chunk."""
+    s = datasets.cylinder_with_holes()
+    F, n = s.F, len(s.V)
+    g, area = energy.surface_gradients(s.V, F)
+    uv = s.uv_true * (1 + 0.1 * np.random.default_rng(1).standard_normal((n, 1)))  # not an isometry
+    J, w = energy.jacobians(uv, F, g), area / area.sum()
+    pat = newton.HessianPattern(F, n, upper=upper)
+    grad, blocks = energy.sd_newton_blocks(J, g, w)
+    H = pat.matrix(blocks)
+    for chunk in (7, 1000, None):
+        grad2, H2 = pat.assemble(J, g, w, chunk)
+        assert np.array_equal(grad, grad2) and H2.format == H.format
+        assert np.array_equal(H.indptr, H2.indptr) and np.array_equal(H.indices, H2.indices)
+        assert np.array_equal(H.data, H2.data)
+
+
 def test_polish_of_an_isometry_converges_at_once():
     """A start that is already the minimum (here a flat disk laid out as itself) is reported converged without a
     Newton step, not as a failed line search (it used to end 'no descent', converged False): its energy is at the
