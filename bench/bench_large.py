@@ -10,8 +10,9 @@ Meshes (generated here from what the repo has; written to a temporary OBJ first)
 
 Each run is a fresh process (its own peak RSS): heatparam = ``heatparam.unwrap.unwrap_file`` (load, default options,
 write the OBJ with vt); LSCM = load, ``igl.lscm`` with two boundary vertices pinned, write the OBJ with
-``formats.save_uv_obj``. Prints a markdown table: seconds, ratio to LSCM, peak RSS, heatparam's stage seconds and
-Newton iterations, iso mean / flips / boundary crossings of both maps.
+``formats.save_uv_obj``. Prints a markdown table: seconds, ratio to LSCM, peak RSS, heatparam's stage seconds, the
+polish's start (and, when the heat stage's MDS layout was computed but not usable, its flips and why) and Newton
+iterations, iso mean / flips / boundary crossings of both maps.
 
 Run: ``python bench/bench_large.py [--only NAME ...]``
 """
@@ -35,9 +36,13 @@ t1 = time.perf_counter()
 r = json.load(open(p["report"]))
 m = r["metrics"]
 ref = r["method"].get("refine", {})
+st = ref.get("start", {})
+start = st.get("layout")
+if start and st.get("flips", 0):  # the MDS layout was computed but not usable: say why
+    start += f" (MDS: {st['flips']} flipped" + (f", {st['repair']['reason']}" if "repair" in st else "") + ")"
 print(json.dumps({"seconds": t1 - t0, "peak_mb": peak_mb(), "iso": m["iso_mean"], "flips": m["flips"],
                   "crossings": m.get("boundary_crossings", 0), "stages": r.get("timings_s", {}),
-                  "iterations": ref.get("polish", {}).get("iterations"),
+                  "iterations": ref.get("polish", {}).get("iterations"), "start": start,
                   "seams": r["method"].get("seams", {}).get("used")}))
 """
 
@@ -97,9 +102,9 @@ def main() -> None:
     ap.add_argument("--only", nargs="*", default=None, choices=NAMES)
     args = ap.parse_args()
     print(f"machine: {machine()}\n")
-    print("| mesh | vertices | heatparam s | LSCM s | ratio | heatparam MB | LSCM MB | stages (s) | Newton its "
-          "| seams | iso / flips / crossings (heatparam) | iso / flips / crossings (LSCM) |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("| mesh | vertices | heatparam s | LSCM s | ratio | heatparam MB | LSCM MB | stages (s) | start "
+          "| Newton its | seams | iso / flips / crossings (heatparam) | iso / flips / crossings (LSCM) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.only or NAMES[:-1]:
             V, F = make(name)
@@ -109,12 +114,12 @@ def main() -> None:
                                        "report": str(Path(tmp) / "r.json")})
             peer = run_isolated(LSCM, {"mesh": mesh, "out": str(Path(tmp) / "l.obj")})
             if "error" in ours or "error" in peer:
-                print(f"| {name} | {len(V)} | failed: {ours.get('error') or peer.get('error')} |||||||||||")
+                print(f"| {name} | {len(V)} | failed: {ours.get('error') or peer.get('error')} ||||||||||||")
                 continue
             stages = ", ".join(f"{k} {v:.1f}" for k, v in ours["stages"].items() if v >= 0.5)
             print(f"| {name} | {len(V)} | {ours['seconds']:.1f} | {peer['seconds']:.1f} | "
                   f"{ours['seconds'] / peer['seconds']:.1f}× | {ours['peak_mb']:.0f} | {peer['peak_mb']:.0f} | "
-                  f"{stages} | {ours['iterations']} | {ours['seams']} | "
+                  f"{stages} | {ours['start']} | {ours['iterations']} | {ours['seams']} | "
                   f"{ours['iso']:.4f} / {ours['flips']} / {ours['crossings']} | "
                   f"{peer['iso']:.4f} / {peer['flips']} / {peer['crossings']} |", flush=True)
 
