@@ -113,10 +113,15 @@ class HessianPattern:
         self.nnz = len(key)
         self.inv = slot[inv.reshape(m, 36)].astype(np.int32)
 
+    @property
+    def slots(self) -> int:
+        """How many data slots the face entries sum into: nnz, and with ``upper`` one more for the lower entries."""
+        return self.nnz + 1 if self.upper else self.nnz
+
     def matrix(self, vals: np.ndarray) -> sp.spmatrix:
         """The (2n,2n) Hessian summed from the per-face blocks ``vals`` (m,36): full CSC, or (``upper``) its upper
         triangle as sorted CSR."""
-        return self._wrap(np.bincount(self.inv.ravel(), weights=vals.ravel(), minlength=len(self._slots())))
+        return self._wrap(np.bincount(self.inv.ravel(), weights=vals.ravel(), minlength=self.slots))
 
     def assemble(self, J: np.ndarray, g: np.ndarray, w: np.ndarray, chunk: int | None = None
                  ) -> tuple[np.ndarray, sp.spmatrix]:
@@ -127,16 +132,12 @@ class HessianPattern:
         m = len(J)
         chunk = ASSEMBLY_CHUNK if chunk is None else chunk
         grad = np.empty((m, 2, 2))
-        data = np.zeros(len(self._slots()))
+        data = np.zeros(self.slots)
         for a in range(0, m, chunk):
             b = min(m, a + chunk)
             grad[a:b], blocks = sd_newton_blocks(J[a:b], g[a:b], w[a:b])
             np.add.at(data, self.inv[a:b].ravel(), blocks.ravel())
         return grad, self._wrap(data)
-
-    def _slots(self) -> range:
-        """The data slots the face entries sum into (upper: one more, the discarded lower entries')."""
-        return range(self.nnz + 1 if self.upper else self.nnz)
 
     def _wrap(self, data: np.ndarray) -> sp.spmatrix:
         if self.upper:
