@@ -41,7 +41,7 @@ def main() -> None:
         t_auto = time.perf_counter() - t
         r = rep["method"]["refine"]
         e = r["start"].get("energy", {})
-        e_mds, e_lscm = (f"{e[k]:.6f}" if k in e else "not bijective" for k in ("mds", "lscm"))
+        e_mds, e_lscm = (f"{e[k]:.6f}" if k in e else "not bijective" for k in ("mds", "conformal"))
         skipped = rep2["method"]["geodesics"]
         why = ("nothing" if not skipped.startswith("skipped") else
                "heat stage (coarse MDS folds)" if "coarse mesh" in skipped else "heat stage (LSCM near-isometric)")

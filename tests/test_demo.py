@@ -26,7 +26,7 @@ def test_noisy_scan_part_is_deterministic_noisy_and_has_two_holes():
     assert np.allclose(np.ptp(a.uv_true, axis=0), [240.0, 180.0], rtol=1e-3)
 
 
-def test_demo_runs_the_heat_stage_and_starts_from_mds(tmp_path, capsys):
+def test_demo_runs_the_heat_stage_and_starts_from_the_better_layout(tmp_path, capsys):
     out = tmp_path / "demo"
     assert main(["demo", "-o", str(out)]) == 0
     for name in ("demo.obj", "demo-report.json", "demo-preview.png"):
@@ -35,19 +35,21 @@ def test_demo_runs_the_heat_stage_and_starts_from_mds(tmp_path, capsys):
     report = json.loads((out / "demo-report.json").read_text())
     method = report["method"]
     assert report["input"] == "generated:noisy_scan_part"
-    # the heat geodesics ran (not "skipped: ...") and MDS started the refinement, its energy the lower
+    # the heat geodesics ran (not "skipped: ...") and the lower-energy of the MDS and conformal layouts started the
+    # refinement
     assert method["geodesics"] in ("landmarks", "all-pairs")
     start = method["refine"]["start"]
-    assert start["layout"] == "mds"
-    assert start["energy"]["mds"] < start["energy"]["lscm"]
+    assert set(start["energy"]) == {"mds", "conformal"}
+    assert start["layout"] == min(start["energy"], key=start["energy"].get)
     assert method["fill"]["used"]
     m = report["metrics"]
     assert m["bijective"] and m["flips"] == 0
     assert m["layout_error_rel"] < 0.02
-    assert report["demo"]["stages"]["start"].startswith("MDS layout")
+    label = f"{start['layout'].upper()} layout"
+    assert report["demo"]["stages"]["start"].startswith(label)
     err = capsys.readouterr().err
     stages = [x for x in err.splitlines() if x.startswith("demo: stages:")]
     assert len(stages) == 1
-    assert "geodesics: ran" in stages[0] and "start: MDS layout" in stages[0] and "fill: " in stages[0]
+    assert "geodesics: ran" in stages[0] and f"start: {label}" in stages[0] and "fill: " in stages[0]
     assert "seams: " in stages[0]
     assert "\r" not in err  # captured stderr is not a terminal: one line per stage

@@ -306,21 +306,29 @@ def test_thin_limbs_with_slivers_fall_back_to_tutte(tmp_path, limbs):
 
     r = json.loads(rep.read_text())
     start = r["method"]["refine"]["start"]
-    assert start["layout"] == "tutte" and "lscm_failed" in start and "mds_rejected" in start
+    assert start["layout"] == "tutte" and "conformal_failed" in start and "mds_rejected" in start
     _, _, UV, _ = formats.load_uv_obj(out)
     assert np.isfinite(UV).all()
     assert r["metrics"]["flips"] == 0 and r["metrics"]["boundary_crossings"] == 0
 
 
-def test_thin_limbs_lscm_failure_is_a_heatparam_error():
+def test_thin_limbs_conformal_failure_is_a_heatparam_error():
     from heatparam import HeatparamError
     from heatparam.layout import conformal as mds
-    from heatparam.mesh import loops_outer_first
 
     V, F = thin_limbs_disk(n_limbs=4, limb_length=2.5, limb_width=0.03, h=0.05, bend=1.0, twist=0.5)
     V = degrade(V, F, slivers=0.02, needles=0.02, squeeze=1e-6)
-    with pytest.raises(HeatparamError, match="LSCM"):  # igl's RuntimeError("igl::lscm failed") was a traceback
-        mds.conformal_layout(V, F, loops_outer_first(V, F)[0])
+    # igl::lscm failed here with a RuntimeError (a traceback); the spectral conformal map (no pins) solves it: either
+    # way the answer is a finite layout or a one-line HeatparamError
+    try:
+        uv = mds.conformal_layout(V, F)
+    except HeatparamError as exc:
+        assert "conformal layout failed" in str(exc)
+    else:
+        assert np.isfinite(uv).all()
+    V[F[0, 0]] = np.inf  # non-finite geometry: the factorization cannot be trusted
+    with pytest.raises(HeatparamError, match="conformal layout failed"):
+        mds.conformal_layout(V, F)
 
 
 def test_refine_rejects_a_non_finite_start():

@@ -599,10 +599,10 @@ def noisy_scan_part(scale: float = 100.0, noise: float = 0.1, h: float = 0.03, s
     model units per unit (default: a 100 mm radius, a 240 × 180 mm flat pattern), with scanner noise.
 
     Every coordinate gets Gaussian noise of ``noise`` × the mean edge length (seeded by ``seed``: deterministic).
-    This is where the paper's method shapes the result (``BENCHMARKS.md`` §8): the noise pulls LSCM's layout away
-    from an isometry far more than the heat-geodesic MDS layout, so the heat stage runs (it is not skipped) and
-    the MDS layout starts the refinement (default: start energy 1.0045 against LSCM's 1.0605). Defaults: 4806
-    vertices, 9197 faces, one outer loop and two hole loops.
+    The noise pulls a conformal layout away from an isometry, so the heat stage runs (it is not skipped): with
+    LSCM's two pins the MDS layout started the refinement (start energy 1.0045 against LSCM's 1.0605,
+    ``BENCHMARKS.md`` §8); the spectral conformal map without pins has 1.0029 against MDS's 1.0066 and starts it
+    (§13). Defaults: 4806 vertices, 9197 faces, one outer loop and two hole loops.
 
     Returns
     -------

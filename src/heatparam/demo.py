@@ -1,8 +1,10 @@
 """``heatparam demo``: unwrap an embedded, generated scan-like part and say which stages shaped the result.
 
 The part (:func:`heatparam.datasets.noisy_scan_part`) is a cylinder patch with two holes, in mm, with
-scanner noise of 0.1 × the mean edge length: there the heat-geodesic MDS layout is a far better start than LSCM
-(``BENCHMARKS.md`` §8), so the paper's pipeline (fill, heat geodesics, MDS) runs and starts the refinement.
+scanner noise of 0.1 × the mean edge length: the conformal layout is not near-isometric there, so the paper's
+pipeline (fill, heat geodesics, MDS) runs and its layout competes with the conformal one as the refinement's start
+(since the conformal layout is the spectral map without pins, 2026-12-02, it wins here: energy 1.0029 against
+MDS's 1.0066; with LSCM's two pins it had 1.0605 and MDS started; ``BENCHMARKS.md`` §8, §13).
 """
 
 from __future__ import annotations
@@ -37,8 +39,8 @@ def stages(report: dict) -> dict[str, str]:
     elif geo is None:
         geo_s = "not run"
     else:
-        lscm = energy.get("lscm")
-        why = (f"LSCM's layout is not near-isometric (energy {lscm:.4f})" if lscm is not None
+        conf = energy.get("conformal")
+        why = (f"the conformal layout is not near-isometric (energy {conf:.4f})" if conf is not None
                else "requested or needed")
         geo_s = f"ran ({geo}; MDS): {why}"
     layout = start.get("layout")

@@ -35,7 +35,7 @@ from scipy.spatial import ConvexHull, Delaunay, QhullError
 from heatparam.errors import HeatparamError
 from heatparam.layout.conformal import conformal_layout
 from heatparam.mesh.planar import signed_areas, triangulate
-from heatparam.mesh.topology import boundary_loops, face_areas, loops_outer_first
+from heatparam.mesh.topology import boundary_loops, face_areas
 from heatparam.mesh.validate import MeshInfo
 
 __all__ = [
@@ -66,6 +66,8 @@ SAMPLES_PER_VERTEX = 10
 MIN_SAMPLES, MAX_SAMPLES = 20_000, 200_000
 #: Biharmonic fill: bays of the border shallower than this many mean edges are left unfilled (no slivers).
 MIN_BAY_DEPTH = 0.5
+#: Biharmonic fill: ... and bays shallower than this fraction of M's diameter.
+MIN_BAY_DEPTH_REL = 0.02
 #: Automatic depth: the octree cell is about CELL_PER_EDGE of M's mean edge, clamped to these depths.
 CELL_PER_EDGE = 0.5
 MIN_DEPTH, MAX_DEPTH = 6, 9
@@ -96,7 +98,8 @@ class FillResult:
 # ----------------------------------------------------------------------------------------------------------
 def provisional_layout(V: np.ndarray, F: np.ndarray, info: MeshInfo | None = None,
                        conformal: Callable[[], np.ndarray] | None = None) -> np.ndarray:
-    """A quick conformal layout of M (``mds.conformal_layout``: LSCM scaled to M's area), (n,2) float64.
+    """A quick conformal layout of M (``layout.conformal.conformal_layout``: the spectral conformal map scaled to
+    M's area), (n,2) float64.
 
     Only used to decide where M* extends (the convex hull of this layout) and to triangulate the gaps; the
     final map never uses it. ``conformal``, if given, returns that layout already computed (the pipeline
@@ -104,8 +107,7 @@ def provisional_layout(V: np.ndarray, F: np.ndarray, info: MeshInfo | None = Non
     """
     if conformal is not None:
         return conformal()
-    loop = info.boundary_loops[0] if info is not None else loops_outer_first(V, F)[0]
-    return conformal_layout(V, F, loop)
+    return conformal_layout(V, F)
 
 
 def concavity(uv: np.ndarray, F: np.ndarray) -> float:
@@ -425,7 +427,8 @@ def _nearest(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return cKDTree(B).query(A)
 
 
-def _gap_polygons(uv: np.ndarray, loops: list[np.ndarray], h: float) -> list[tuple[np.ndarray, np.ndarray]]:
+def _gap_polygons(uv: np.ndarray, loops: list[np.ndarray], h: float, diameter: float = 0.0
+                  ) -> list[tuple[np.ndarray, np.ndarray]]:
     """The gaps of the hull of M's layout: (vertex ids of M on the polygon or -1 for new points, polygon (k,2)).
 
     Holes: the inner loops. Bays: between the outer loop and the convex hull, one per hull edge that skips
@@ -445,7 +448,7 @@ def _gap_polygons(uv: np.ndarray, loops: list[np.ndarray], h: float) -> list[tup
         if span <= 1:
             continue
         ids = outer[(a + np.arange(span + 1)) % n]
-        if _bay_depth(uv[ids]) < MIN_BAY_DEPTH * h:
+        if _bay_depth(uv[ids]) < max(MIN_BAY_DEPTH * h, MIN_BAY_DEPTH_REL * diameter):
             continue  # a nearly straight stretch of border, not a concavity: leave it (and its slivers) out
         ids = _trim_bay_ends(uv, ids, MIN_BAY_DEPTH * h)
         extra = _subdivide(uv[ids[-1]], uv[ids[0]], h)
@@ -557,7 +560,7 @@ def biharmonic_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo,
     Lall = [gpy.halfedge_lengths_squared(V, F)]  # M's own triangles: their 3D lengths
     count = n
     skipped = replanned = 0
-    for ids, poly in _gap_polygons(uv, info.boundary_loops, h):
+    for ids, poly in _gap_polygons(uv, info.boundary_loops, h, info.diameter):
         try:
             P2, T = _triangulate_region(poly, h)
         except (ValueError, HeatparamError):  # the outline self-intersects in the provisional layout

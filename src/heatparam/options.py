@@ -26,13 +26,13 @@ MASS_KINDS = ("lumped", "consistent")
 TIME_STEPS = ("default", "paper")
 BACKENDS = ("auto", "cholespy", "scipy", "pardiso")
 
-#: With ``mds_start auto`` the heat geodesics and MDS are skipped when the LSCM start is bijective and its energy
+#: With ``mds_start auto`` the heat geodesics and MDS are skipped when the conformal start is bijective and its energy
 #: exceeds an isometry's (1) by at most this: no start can be better by more than this, and the polish converges
-#: from LSCM in 0-3 iterations. The MDS start's excess measured 2.7e-3 to 0.34 on every surface tried
+#: from it in 0-3 iterations. The MDS start's excess measured 2.7e-3 to 0.34 on every surface tried
 #: (docs/refine.md), so skipping changed no start.
 ISOMETRIC_START_EXCESS = 1e-3
-#: Meshes of at least this many vertices whose LSCM start is bijective but not isometric get a fold check: the
-#: fill, geodesics and MDS run first on a coarse mesh (FOLD_CHECK_VERTICES, triangulated in the LSCM layout); if
+#: Meshes of at least this many vertices whose conformal start is bijective but not isometric get a fold check: the
+#: fill, geodesics and MDS run first on a coarse mesh (FOLD_CHECK_VERTICES, triangulated in the conformal layout); if
 #: more of its triangles are flipped than the refinement would repair, the full one is not computed. Folding is a
 #: property of the shape (camelhead: 53% of the coarse triangles flipped at 11k and 51% at 45k, 59% and 58% of the
 #: full ones); a coarse layout that does not fold proves nothing, and the full heat stage runs (beetle: 0 flips
@@ -116,20 +116,21 @@ OPTIONS: tuple[Option, ...] = (
            "all-pairs path", low=3, high=100_000),
     Option("stress_sources", 32, "int", "number of sources for the sampled Eq. 1 stress in the report",
            low=1, high=10_000),
-    Option("refine", "sd", "choice", "sd = a bijective start (the lower-energy bijective one of the MDS and LSCM "
-           "layouts, an MDS layout with <= 0.1% of its triangles flipped repaired first; else Tutte) polished by "
-           "projected-Newton symmetric Dirichlet at true scale inside a re-triangulated scaffold, so no triangle "
-           "flips and no boundary crosses another (docs/refine.md); none = the paper's raw MDS map",
+    Option("refine", "sd", "choice", "sd = a bijective start (the lower-energy bijective one of the MDS layout and "
+           "the conformal one (spectral, no pins), an MDS layout with <= 0.1% of its triangles flipped repaired "
+           "first; else Tutte) polished by projected-Newton symmetric Dirichlet at true scale inside a "
+           "re-triangulated scaffold, so no triangle flips and no boundary crosses another (docs/refine.md); "
+           "none = the paper's raw MDS map",
            REFINE_MODES, flag="--refine"),
     Option("mds_start", "auto", "choice", "with refine sd: auto skips the fill, the heat geodesics and MDS (a) when "
-           "the LSCM layout is already bijective and within {ISOMETRIC_START_EXCESS:.1%} of an isometry in energy "
+           "the conformal layout is already bijective and within {ISOMETRIC_START_EXCESS:.1%} of an isometry in energy "
            "(developable parts), (b) on meshes of >= {FOLD_CHECK_MIN_VERTICES} vertices, when the MDS layout of a "
            "coarse mesh (~{FOLD_CHECK_VERTICES} vertices) folds beyond repair (curved scans): the same map, "
            "faster, and the report's stress_rel_rms is then null; never when fill, geodesics, landmarks or stress "
            "is set explicitly. "
            "always = compute them as a start candidate anyway (in an atlas: every chart through the pipeline "
-           "instead of the charts' joint polish); never = skip them (LSCM or Tutte starts; an atlas's charts are "
-           "polished together from LSCM unless this is always: BENCHMARKS §10)",
+           "instead of the charts' joint polish); never = skip them (the conformal layout or Tutte starts; an "
+           "atlas's charts are polished together from LSCM unless this is always: BENCHMARKS §10)",
            MDS_START_MODES, flag="--mds-start"),
     Option("seams", "auto", "choice", "cut holes open to the border along the shortest surface paths: auto = when "
            "the map without seams is more than {SEAM_TRY_EXCESS:.2%} from an isometry (closer, no cut map "

@@ -93,11 +93,11 @@ def test_uncut_start_on_halftunnel_loses():
     assert r_u["polish"]["energy_end"] > r_t["polish"]["energy_end"] * 1.01
     _, r = refine(Vs, Fs, None, extra_starts={"uncut": x})
     e = r["start"]["energy"]
-    assert r["start"]["layout"] == "lscm" and e["lscm"] < e["uncut"]
+    assert r["start"]["layout"] == "conformal" and e["conformal"] < e["uncut"]
 
 
 @pytest.mark.parametrize("case,kw,why", [(_halftunnel, {}, "the surface is cut open along seams"),
-                                         (_cap, {"seams": "holes"}, "the LSCM layout is bijective and within")],
+                                         (_cap, {"seams": "holes"}, "the conformal layout is bijective and within")],
                          ids=["halftunnel", "cap"])
 def test_cut_mesh_skips_the_heat_stage_with_the_same_map(case, kw, why):
     V, F = case()

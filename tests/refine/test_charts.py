@@ -8,7 +8,6 @@ import numpy as np
 from heatparam import datasets
 from heatparam.atlas.overlap import count_overlaps
 from heatparam.layout.conformal import conformal_layout
-from heatparam.mesh import boundary_loops
 from heatparam.metrics import true_scale_iso
 from heatparam.refine.charts import arrange, refine_charts
 
@@ -30,7 +29,7 @@ def test_three_charts_polished_together():
     V = np.vstack([p[0] for p in parts])
     F = np.vstack([p[1] + o for p, o in zip(parts, offs[:-1], strict=True)])
     vgroup = np.repeat(np.arange(len(parts)), np.diff(offs))
-    starts = [conformal_layout(Vi, Fi, boundary_loops(Fi)[0]) for Vi, Fi in parts]
+    starts = [conformal_layout(Vi, Fi) for Vi, Fi in parts]
     x, rep = refine_charts(V, F, np.vstack(starts), vgroup, len(parts))
     assert rep["flips"] == 0 and rep["boundary_crossings"] == 0 and rep["converged"]
     assert count_overlaps(x, F) == 0

@@ -286,7 +286,7 @@ def test_refine_report_says_what_was_done():
     _, rep = pipeline.parameterize(s.V, s.F)
     r = rep["method"]["refine"]
     assert r["holes"] == len(tutte.build_disk(s.V, s.F).holes) >= 1
-    assert r["start"]["layout"] in ("mds", "lscm", "tutte")
+    assert r["start"]["layout"] in ("mds", "conformal", "tutte")
     pol = r["polish"]
     assert pol["converged"] and pol["stop"] == "converged" and pol["iterations"] >= 1
     assert pol["energy_end"] <= pol["energy_start"]
@@ -376,7 +376,7 @@ def test_refine_survives_a_failing_lscm_candidate():
 
     uv_mds, _ = pipeline.parameterize(s.V, s.F, refine="none", fill="none")
     uv, rep = refine.refine(s.V, s.F, uv_mds, conformal=broken)
-    assert rep["start"]["layout"] == "mds" and "lscm_failed" in rep["start"]
+    assert rep["start"]["layout"] == "mds" and "conformal_failed" in rep["start"]
     assert rep["bijective"] and datasets.layout_error(uv, s.uv_true) <= 1e-3
 
 
@@ -623,5 +623,5 @@ def test_refine_starts_from_a_repaired_mds_layout_when_it_is_better():
     x, rep = refine.refine(V, d.F, folded)
     st = rep["start"]
     assert st["flips"] > 0 and st["repair"]["repaired"] and st["layout"] == "mds"
-    assert st["energy"]["mds"] < st["energy"]["lscm"]
+    assert st["energy"]["mds"] < st["energy"]["conformal"]
     assert rep["bijective"]

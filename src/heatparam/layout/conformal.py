@@ -1,12 +1,14 @@
-"""Conformal layouts: least-squares conformal maps (LSCM, Lévy et al. 2002) and orientation of a layout.
+"""Conformal layouts: the spectral conformal map (Mullen et al. 2008: no pins; ``conformal_layout``, scaled to the
+3D area), least-squares conformal maps with pins (LSCM, Lévy et al. 2002) and orientation of a layout.
 
-Not MDS: the fill uses the LSCM layout to decide where M* extends, the refinement as a start candidate. LSCM is
-exact up to scale on developable surfaces (``conformal_layout`` scales it to the 3D area).
+Not MDS: the fill uses the conformal layout to decide where M* extends, the refinement as a start candidate. Both are
+exact up to a similarity on developable surfaces.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 from heatparam.errors import HeatparamError
 from heatparam.mesh.planar import signed_areas
@@ -25,32 +27,46 @@ def orient_layout(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
         uv[:, 1] *= -1
     return uv
 
-def lscm(V: np.ndarray, F: np.ndarray, pinned: np.ndarray, pinned_uv: np.ndarray, backend: str = "auto") -> np.ndarray:
-    """Least-squares conformal map (Lévy et al. 2002) with ``pinned`` (k,) vertices at ``pinned_uv`` (k,2).
+def _conformal_energy(V: np.ndarray, F: np.ndarray) -> tuple[sp.csc_matrix, np.ndarray, list[np.ndarray]]:
+    """The conformal energy's matrix Q (2n,2n) of x = (u, v), the boundary vertices' masses (n,) and the boundary
+    loops (``mesh.topology.boundary_loops``).
 
-    Minimizes E_C = ½ ∫ |J|² − ∫ det J = ½ xᵀ (K ⊕ K) x − A(x), K the cotangent Laplacian (∫|∇u|² = uᵀKu) and
-    A(x) = ½ Σ (u_i v_j − u_j v_i) over the boundary half-edges i → j (the layout's signed area, holes included),
-    so the Hessian is Q = (K ⊕ K) − 2M with M the symmetric form of A. Q restricted to the free unknowns is SPD once
-    two vertices are pinned; it is factorized by ``solvers.Factor`` (PARDISO for large systems when installed:
-    ``solvers.large_system_backend``). Returns uv (n,2); vertices no face uses stay at 0.
+    E_C = ½ ∫ |J|² − ∫ det J = ½ xᵀ (K ⊕ K) x − A(x) (Lévy et al. 2002; Mullen et al. 2008, Eq. 2), K the
+    cotangent Laplacian (∫|∇u|² = uᵀKu) and A(x) = ½ Σ (u_i v_j − u_j v_i) over the boundary half-edges i → j (the
+    layout's signed area, holes included), so Q = (K ⊕ K) − 2M with M the symmetric form of A; Q is positive
+    semidefinite. The mass of a boundary vertex is half the length of its two boundary edges (0 inside).
     """
     import igl
-    import scipy.sparse as sp
 
     from heatparam.mesh.topology import boundary_loops
-    from heatparam.solvers import Factor, large_system_backend
 
     n = len(V)
     K = (-igl.cotmatrix(V, F)).tocsc()
-    he = [(lp, np.roll(lp, -1)) for lp in boundary_loops(F)]  # half-edges i → j as oriented in their faces
-    i = np.concatenate([h[0] for h in he]) if he else np.zeros(0, np.int64)
-    j = np.concatenate([h[1] for h in he]) if he else np.zeros(0, np.int64)
+    loops = boundary_loops(F)
+    i = np.concatenate(loops) if loops else np.zeros(0, np.int64)  # half-edges i → j as oriented in their faces
+    j = np.concatenate([np.roll(lp, -1) for lp in loops]) if loops else np.zeros(0, np.int64)
     # M: A(x) = xᵀ M x with x = (u, v); each half-edge adds u_i v_j / 2 − u_j v_i / 2, split symmetrically
     r = np.concatenate([i, j + n, j, i + n])
     c = np.concatenate([j + n, i, i + n, j])
     w = np.repeat([0.25, 0.25, -0.25, -0.25], len(i))
     M = sp.csc_matrix((w, (r, c)), shape=(2 * n, 2 * n))
     Q = (sp.block_diag([K, K], format="csc") - 2.0 * M).tocsc()
+    half = 0.5 * np.linalg.norm(V[i] - V[j], axis=1)
+    mass = np.bincount(i, half, minlength=n) + np.bincount(j, half, minlength=n)
+    return Q, mass, loops
+
+
+def lscm(V: np.ndarray, F: np.ndarray, pinned: np.ndarray, pinned_uv: np.ndarray, backend: str = "auto") -> np.ndarray:
+    """Least-squares conformal map (Lévy et al. 2002) with ``pinned`` (k,) vertices at ``pinned_uv`` (k,2).
+
+    Minimizes the conformal energy E_C (:func:`_conformal_energy`); its matrix Q restricted to the free unknowns is
+    SPD once two vertices are pinned; it is factorized by ``solvers.Factor`` (PARDISO for large systems when
+    installed: ``solvers.large_system_backend``). Returns uv (n,2); vertices no face uses stay at 0.
+    """
+    from heatparam.solvers import Factor, large_system_backend
+
+    n = len(V)
+    Q, _, _ = _conformal_energy(V, F)
     used = np.zeros(n, dtype=bool)
     used[F.ravel()] = True
     fixed = np.concatenate([pinned, pinned + n])
@@ -67,32 +83,99 @@ def lscm(V: np.ndarray, F: np.ndarray, pinned: np.ndarray, pinned_uv: np.ndarray
         raise HeatparamError(f"the conformal (LSCM) layout failed ({exc}): is the mesh degenerate?") from exc
     return np.column_stack([x[:n], x[n:]])
 
-def conformal_layout(V: np.ndarray, F: np.ndarray, outer: np.ndarray, backend: str = "auto") -> np.ndarray:
-    """A quick reference layout: free-boundary LSCM (two far vertices of the outer loop pinned), mirrored to keep
-    the mesh's orientation, scaled to the 3D area and centred. (n,2) float64.
 
-    Not MDS: the fill uses it to decide where M* extends, the refinement as a fallback start when the MDS layout
-    folds. LSCM is exact up to scale on developable surfaces. Large systems that PARDISO would factorize
-    (``solvers.large_system_backend``) go through :func:`lscm` (196k-vertex cylinder patch 1.7 s vs 10.0 s for
-    ``igl.lscm``, camelhead↑180k 2.9 s vs 6.2 s); smaller ones through ``igl.lscm`` (45k: 0.59 s vs 0.96 s). Same map.
+#: Spectral conformal map: the inverse iteration stops when its layout (B-unit) moves by less than this
+SCP_TOL = 1e-6
+#: ... or after this many solves
+SCP_MAX_ITERS = 60
+#: ... with Q + SCP_SHIFT·(mean diagonal of Q / mean boundary mass)·B factorized (Q itself is singular)
+SCP_SHIFT = 1e-8
+
+
+def spectral_conformal(V: np.ndarray, F: np.ndarray, backend: str = "auto") -> tuple[np.ndarray, int]:
+    """Spectral conformal parameterization (Mullen, Tong, Alliez, Desbrun 2008): the layout x = (u, v) that
+    minimizes the conformal energy E_C(x) = xᵀQx (:func:`_conformal_energy`) subject to xᵀBx = 1 and a zero
+    B-weighted mean, B = diag(boundary masses) for u and v: the generalized eigenvector of Q x = λ B x with the
+    smallest non-trivial λ (the trivial ones are the translations, λ = 0).
+
+    No vertex is pinned. LSCM's two pins (Lévy et al. 2002) are arbitrary, and on scanned surfaces the noise's
+    small-scale curvature lets the pinned solution shrink towards the pins: a 191k-vertex noisy cylinder patch with
+    holes (2.4 × 1.8) became a 4.6 × 1.0 lens (start energy 2.82; this map 1.14), the demo's part 1.06 → 1.003.
+    On developable surfaces both are the isometry up to a similarity.
+
+    Solved by inverse iteration, x ← (Q + εB)⁻¹ B x, B-centred and B-normalized at every step (one factorization,
+    ``solvers.Factor``; PARDISO for large systems), from the 3D distances to two far boundary vertices (a start that
+    a rigid motion of the input does not change),
+    until the B-unit layout moves by less than :data:`SCP_TOL` (at most :data:`SCP_MAX_ITERS` solves; 4-12 on the
+    shared meshes), then turned so that the longest boundary loop's first vertex and the vertex of that loop
+    farthest from it lie on a line parallel to the u axis (as LSCM's two pins were).
+    Returns (uv (n,2), solves); vertices no face uses are at 0.
     """
-    import igl
+    from heatparam.solvers import Factor, large_system_backend
 
-    from heatparam.solvers import large_system_backend
-
+    n = len(V)
+    Q, mass, loops = _conformal_energy(V, F)
+    if not mass.any():
+        raise HeatparamError("the conformal layout failed: the mesh has no boundary (it is closed)")
+    if not (np.isfinite(Q.data).all() and np.isfinite(mass).all()):
+        raise HeatparamError("the conformal layout failed (non-finite cotangent weights): is the mesh degenerate?")
+    used = np.zeros(n, dtype=bool)
+    used[F.ravel()] = True
+    idx = np.flatnonzero(np.concatenate([used, used]))
+    Q = Q[idx][:, idx].tocsc()
+    b = np.concatenate([mass, mass])[idx]
+    eps = SCP_SHIFT * float(np.abs(Q.diagonal()).mean()) / float(b[b > 0].mean())
+    try:
+        fac = Factor((Q + sp.diags(eps * b)).tocsc(), large_system_backend(len(idx), backend))
+    except (ValueError, RuntimeError) as exc:  # not positive definite: degenerate faces, several components
+        raise HeatparamError(f"the conformal layout failed ({exc}): is the mesh degenerate?") from exc
+    nu = int(used.sum())
+    bu = b[:nu]
+    outer = max(loops, key=len)
     a = int(outer[0])
-    b = int(outer[np.argmax(np.linalg.norm(V[outer] - V[a], axis=1))])
-    pins, pin_uv = np.array([a, b], dtype=np.int64), np.array([[0.0, 0.0], [1.0, 0.0]])
-    if large_system_backend(2 * len(V), backend) == "pardiso":
-        uv = lscm(V, F, pins, pin_uv, backend="pardiso")
-    else:
-        try:
-            uv, _ = igl.lscm(V, F, pins, pin_uv)
-        except RuntimeError:  # "igl::lscm failed": its solver gave up on degenerate faces (thin limbs, slivers)
-            raise HeatparamError("the conformal (LSCM) layout failed: is the mesh degenerate?") from None
-    uv = np.asarray(uv, dtype=np.float64)
+    far = int(outer[np.argmax(np.linalg.norm(V[outer] - V[a], axis=1))])
+    # start: the 3D distances to a and to far, which a rigid motion of the input leaves as they are (so does Q, B)
+    x = np.linalg.norm(V[used][None] - V[[a, far]][:, None], axis=2).ravel()
+
+    def centred_unit(x: np.ndarray) -> np.ndarray:
+        x = x.reshape(2, nu)
+        x = x - (x @ bu / bu.sum())[:, None]
+        x = x.ravel()
+        return x / np.sqrt(x @ (b * x))
+
+    x, solves = centred_unit(x), 0
+    while solves < SCP_MAX_ITERS:
+        y = fac.solve(b * x)
+        solves += 1
+        if not np.isfinite(y).all():
+            raise HeatparamError("the conformal layout failed (non-finite solve): is the mesh degenerate?")
+        y = centred_unit(y)
+        d = y - x
+        x = y
+        if d @ (b * d) <= SCP_TOL**2:  # the B-unit layout moved by less than SCP_TOL
+            break
+    uv = np.zeros((n, 2))
+    uv[used] = x.reshape(2, nu).T
+    # x is determined up to a rotation (x and its 90° turn have the same energy): turn it as LSCM's pins did, the
+    # longest loop's first vertex a and the vertex of that loop farthest from it on the +u axis
+    d = uv[far] - uv[a]
+    c, s = d / max(float(np.hypot(*d)), 1e-300)
+    return uv @ np.array([[c, -s], [s, c]]), solves
+
+
+def conformal_layout(V: np.ndarray, F: np.ndarray, backend: str = "auto") -> np.ndarray:
+    """A quick reference layout: the spectral conformal map (:func:`spectral_conformal`, no pins), mirrored to
+    keep the mesh's orientation, scaled to the 3D area and centred. (n,2) float64.
+
+    Not MDS: the fill uses it to decide where M* extends, the refinement as a start candidate. It is exact up to a
+    similarity on developable surfaces. Measured against LSCM with two far boundary vertices pinned (``igl.lscm``,
+    the previous layout here; 2026-12-02): start energy lower or equal on every shared mesh and generated surface
+    (beetle 1.064 → 1.044, halftunnel cut open 1.218 → 1.069, the demo's part 1.060 → 1.003, its 196k version 2.08
+    → 1.05, a 191k noisy cylinder with holes 2.82 → 1.14); it costs one factorization (as LSCM) and 5-15 solves.
+    """
+    uv, _ = spectral_conformal(V, F, backend)
     if not np.isfinite(uv).all():
-        raise HeatparamError("the conformal (LSCM) layout failed: is the mesh degenerate?")
+        raise HeatparamError("the conformal layout failed: is the mesh degenerate?")
     signed = signed_areas(uv, F).sum()
     if signed < 0:
         uv[:, 1] *= -1

@@ -7,7 +7,7 @@
     validate + compact (surface)                   mesh.validate_mesh, Surface
       └ flatten(surface)
           fill decision                            heat_stage.decide_fill (fill.needs_fill, §2.5)
-          start checks: skip the heat stage?       shortcuts.start_checks (LSCM start, fold check)
+          start checks: skip the heat stage?       shortcuts.start_checks (conformal start, fold check)
           fill M* → heat geodesics → MDS           heat_stage.mds_map (fill, heat, layout.mds; Eq. 2-16)
           refine: start + bijective polish         refine.refine
           metrics                                  report.map_metrics

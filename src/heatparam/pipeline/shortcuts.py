@@ -1,11 +1,11 @@
 """When the heat stage cannot change the map, skip it (``Options.mds_start = "auto"``).
 
-The refinement starts from the lower-energy bijective layout of MDS and LSCM. Two cases where the MDS layout cannot
-win are recognised before it is computed:
+The refinement starts from the lower-energy bijective layout of MDS and the conformal layout (spectral, no pins).
+Cases where the MDS layout cannot win are recognised before it is computed:
 
-(a) the LSCM layout is bijective and within ``ISOMETRIC_START_EXCESS`` of an isometry (developable parts);
+(a) the conformal layout is bijective and within ``ISOMETRIC_START_EXCESS`` of an isometry (developable parts);
 (b) on meshes of at least ``FOLD_CHECK_MIN_VERTICES``, the MDS layout of a coarse mesh (``FOLD_CHECK_VERTICES``,
-    ~8k, triangulated in the LSCM layout) folds beyond what the refinement repairs (curved scans): the full one
+    ~8k, triangulated in the conformal layout) folds beyond what the refinement repairs (curved scans): the full one
     folds too;
 (c) the surface is the seams stage's cut-open mesh: it is not filled (a fill would close the seams), geodesics run
     around the slits, and MDS lost to LSCM or Tutte on every seamed map measured (beetle: 4106 flipped faces;
@@ -34,7 +34,7 @@ from heatparam.refine.start import MDS_REPAIR_MAX_FRACTION, LscmStart, lscm_star
 
 
 class StartCheck(NamedTuple):
-    """The start checks' value: the LSCM start judged (or None when not checked), why the heat stage is skipped
+    """The start checks' value: the conformal start judged (or None when not checked), why the heat stage is skipped
     (None: it runs), and the fold check's report (None when it did not run)."""
 
     lscm: LscmStart | None
@@ -55,10 +55,11 @@ def start_checks(surface: Surface, opts, prog: Progress, seamed: bool = False) -
     with prog.stage("start check"):
         lscm = lscm_start(surface.V, surface.F, surface.conformal, surface.gradients())
     if opts.mds_start == "never":
-        return StartCheck(lscm, "skipped: mds_start='never' (the refinement starts from LSCM, or Tutte when LSCM is "
+        return StartCheck(lscm, "skipped: mds_start='never' (the refinement starts from the conformal layout, or Tutte "
+                                "when it is "
                                 "not bijective)", None)
     if lscm.near_isometric:
-        return StartCheck(lscm, (f"skipped: the LSCM layout is bijective and within {ISOMETRIC_START_EXCESS:g} of "
+        return StartCheck(lscm, (f"skipped: the conformal layout is bijective and within {ISOMETRIC_START_EXCESS:g} of "
                                  f"an isometry (energy {lscm.energy:.7f}), so it starts the refinement "
                                  "(mds_start='always' computes them)"), None)
     if seamed:
@@ -73,7 +74,8 @@ def start_checks(surface: Surface, opts, prog: Progress, seamed: bool = False) -
         return StartCheck(lscm, None, fc)
     return StartCheck(lscm, (f"skipped: the MDS layout of a {fc['vertices']}-vertex coarse mesh folds ({fc['flips']} "
                              f"of {fc['faces']} triangles flipped, more than a repair handles), so the full one would "
-                             "not be a start for the refinement either; it starts from LSCM (mds_start='always' "
+                             "not be a start for the refinement either; it starts from the conformal layout "
+                             "(mds_start='always' "
                              "computes them)"), fc)
 
 

@@ -17,7 +17,7 @@ class Surface:
     """A validated disk (V (n,3), F (m,3)) whose vertices are all referenced, and its :class:`MeshInfo`, in the
     internal units of its :class:`~heatparam.mesh.frame.UnitFrame` (the input's own, except for extreme sizes).
 
-    ``conformal()`` (the free-boundary LSCM layout scaled to the 3D area, read-only) and ``gradients()`` (the
+    ``conformal()`` (the spectral conformal layout scaled to the 3D area, read-only) and ``gradients()`` (the
     refinement's hat gradients and areas) are computed at most once and shared by the fill decision, the start
     checks and the refinement.
     """
@@ -41,10 +41,10 @@ class Surface:
 
     @functools.cache  # noqa: B019 - one Surface per flattening; the cache lives exactly as long as it
     def conformal(self) -> np.ndarray:
-        """The LSCM layout (``layout.conformal.conformal_layout``), (n,2), computed once."""
+        """The conformal layout (``layout.conformal.conformal_layout``: spectral, no pins), (n,2), computed once."""
         from heatparam.layout.conformal import conformal_layout
 
-        uv0 = conformal_layout(self.V, self.F, self.info.boundary_loops[0])
+        uv0 = conformal_layout(self.V, self.F)
         uv0.setflags(write=False)
         return uv0
 

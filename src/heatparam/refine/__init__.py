@@ -73,7 +73,7 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefinePa
     params : :class:`RefineParams`.
     progress : a ``progress.Progress`` (bars), or None.
     conformal : returns the LSCM layout if already computed (the fill decision computes it).
-    lscm : the LSCM start already judged (``start.lscm_start``), if any.
+    lscm : the conformal start already judged (``start.lscm_start``), if any.
     surface : ``energy.surface_gradients(V, F)`` if already computed.
     extra_starts : further named start candidates (n,2), judged with the others (``start.choose_start``).
 
@@ -88,7 +88,7 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefinePa
     >>> s = datasets.cylinder_patch(h=0.1)
     >>> uv, rep = refine(s.V, s.F, None)
     >>> rep["bijective"], rep["start"]["layout"]
-    (True, 'lscm')
+    (True, 'conformal')
     """
     r = Refinement(V, F, uv, params, progress, conformal, lscm, surface, extra_starts)
     r.run()

@@ -1,4 +1,4 @@
-"""The refinement's start: the bijective one of the MDS and LSCM layouts with the lower energy, else Tutte.
+"""The refinement's start: the bijective one of the MDS and conformal layouts with the lower energy, else Tutte.
 
 Every candidate is judged once, here: flipped faces, boundary crossings, energy (1 = isometry). An MDS layout with
 a few flipped faces is repaired first (:func:`repaired_layout`).
@@ -21,8 +21,9 @@ from heatparam.refine.multilevel import repair_flips
 
 
 def conformal_start(V: np.ndarray, F: np.ndarray, disk: Disk) -> np.ndarray:
-    """Free-boundary LSCM scaled to the 3D area and centred (``mds.conformal_layout``), (n,2)."""
-    return conformal_layout(V, F, disk.outer)
+    """The spectral conformal layout scaled to the 3D area and centred (``layout.conformal.conformal_layout``),
+    (n,2). ``disk`` is not needed (no pins); kept for the callers' symmetry with ``tutte``."""
+    return conformal_layout(V, F)
 
 def bijectivity(uv: np.ndarray, F: np.ndarray, g: np.ndarray) -> tuple[int, int]:
     """(flipped faces, boundary crossings) of a layout; crossings are only counted when nothing is flipped."""
@@ -54,7 +55,7 @@ def repaired_layout(x: np.ndarray, F: np.ndarray, g: np.ndarray, loops: list[np.
     return z, {"flips": flips, "repaired": True, "rounds": rounds}
 
 class LscmStart(NamedTuple):
-    """The LSCM layout as a start candidate: the layout (None if it failed), flips, crossings (-1 when not
+    """The conformal layout as a start candidate: the layout (None if it failed), flips, crossings (-1 when not
     counted), its energy per area / 4 (1 = isometry; None unless bijective) and why it failed."""
 
     uv: np.ndarray | None
@@ -69,17 +70,17 @@ class LscmStart(NamedTuple):
 
 def lscm_start(V: np.ndarray, F: np.ndarray, conformal: Callable[[], np.ndarray] | None = None,
                surface: tuple[np.ndarray, np.ndarray] | None = None) -> LscmStart:
-    """The LSCM layout of (V, F) (``conformal()`` if given, else computed) judged as a start for the polish.
+    """The conformal layout of (V, F) (``conformal()`` if given, else computed) judged as a start for the polish.
 
     surface : ``surface_gradients(V, F)`` if already computed.
     """
     g, area = surface if surface is not None else surface_gradients(V, F)
     try:
         xl = np.array(conformal() if conformal is not None else conformal_start(V, F, build_disk(V, F)))
-    except HeatparamError as exc:  # a degenerate mesh: LSCM is only a candidate start, MDS or Tutte still serve
+    except HeatparamError as exc:  # a degenerate mesh: the conformal layout is only a candidate, MDS or Tutte serve
         return LscmStart(None, -1, -1, None, str(exc))
     if not np.isfinite(xl).all():  # never hand NaN on: the candidate is dropped, MDS or Tutte still serve
-        return LscmStart(None, -1, -1, None, "the LSCM layout has non-finite coordinates")
+        return LscmStart(None, -1, -1, None, "the conformal layout has non-finite coordinates")
     flips, cross = bijectivity(xl, F, g)
     e = normalized_energy(xl, F, g, area) if flips == 0 and cross == 0 else None
     return LscmStart(xl, flips, cross, e)
@@ -89,7 +90,7 @@ def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk
                  lscm: LscmStart | None, conformal: Callable[[], np.ndarray] | None, backend: str,
                  extra: dict[str, np.ndarray] | None = None) -> tuple[np.ndarray, dict]:
     """The polish's start: of the MDS layout ``uv`` (n,2) (a few flipped faces repaired: :func:`repaired_layout`;
-    None = not computed), the LSCM layout (``lscm`` if given, else :func:`lscm_start`) and the ``extra`` named
+    None = not computed), the conformal layout (``lscm`` if given, else :func:`lscm_start`) and the ``extra`` named
     layouts (n,2) (e.g. ``"uncut"``: the seams stage's uncut map with its slits opened), the bijective one (no
     flipped face, no crossing of any boundary loop) with the lowest energy; if none is bijective, Tutte's
     embedding of the disk. Returns (layout (n,2), the report's ``start`` part)."""
@@ -113,10 +114,10 @@ def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk
         if x is not None and not cross:
             cands["mds"], energies["mds"] = x, normalized_energy(x, F, g, area)
     if lscm.failed is not None:
-        report["lscm_failed"] = lscm.failed
-    report.update(lscm_flips=lscm.flips, lscm_crossings=lscm.crossings)
+        report["conformal_failed"] = lscm.failed
+    report.update(conformal_flips=lscm.flips, conformal_crossings=lscm.crossings)
     if lscm.energy is not None:
-        cands["lscm"], energies["lscm"] = lscm.uv, lscm.energy
+        cands["conformal"], energies["conformal"] = lscm.uv, lscm.energy
     for name, xe in (extra or {}).items():
         xe = np.asarray(xe, dtype=np.float64)
         flips, cross = bijectivity(xe, F, g)
@@ -134,7 +135,7 @@ def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk
     if not np.isfinite(x).all():
         x, start = tutte(V, disk, backend)[: len(V)], "tutte"
     if not np.isfinite(x).all():
-        raise HeatparamError("the refinement's start layouts (MDS, LSCM, Tutte) all have non-finite coordinates: "
+        raise HeatparamError("the refinement's start layouts (MDS, conformal, Tutte) all have non-finite coordinates: "
                              "is the mesh degenerate?")
     report["layout"] = start
     return x, report
