@@ -31,19 +31,16 @@ BACKENDS = ("auto", "cholespy", "scipy", "pardiso")
 #: from it in 0-3 iterations. The MDS start's excess measured 2.7e-3 to 0.34 on every surface tried
 #: (docs/refine.md), so skipping changed no start.
 ISOMETRIC_START_EXCESS = 1e-3
-#: Meshes of at least this many vertices whose conformal start is bijective but not isometric get a fold check: the
-#: fill, geodesics and MDS run first on a coarse mesh (FOLD_CHECK_VERTICES, triangulated in the conformal layout); if
-#: more of its triangles are flipped than the refinement would repair, the full one is not computed. Folding is a
-#: property of the shape (camelhead: 53% of the coarse triangles flipped at 11k and 51% at 45k, 59% and 58% of the
-#: full ones); a coarse layout that does not fold proves nothing, and the full heat stage runs (beetle: 0 flips
-#: coarse, 1 full).
-FOLD_CHECK_MIN_VERTICES = 30_000
-#: ... on a coarse mesh of about this many vertices (plus every boundary vertex), whatever the mesh's size: it was
-#: 1/8 of the vertices until 2026-12-02, and 8k gave the same verdict on every mesh of issue 17's set and beetle↑78k /
-#: camelhead↑45k (camelhead↑182k: 50% of the coarse triangles flipped at 10k vertices, 45% at 28k; the noisy parts
-#: and beetle↑: none at either) in 2-3.5× less time (beetle↑311k 8.6 → 2.4 s, the noisy cylinder 4.3 → 1.7 s). Coarser
-#: checks see less of a scan's noise, so they err towards running the heat stage, never towards skipping it.
-FOLD_CHECK_VERTICES = 8_000
+#: On meshes of at least this many vertices whose conformal start is bijective the heat geodesics and MDS are skipped
+#: too: there the polish from the conformal layout reached the same map quality in less time on every part measured
+#: (2026-12-02, mds_start auto before this rule vs never; iso mean equal to ±5e-6): the noisy demo part at 49k (MDS
+#: energy 1.0029 vs conformal 1.0237: 11.6 vs 5.5 s, iso 1.013483 both) and 196k (54.6 vs 21.0 s), the noisy
+#: cylinder with holes at 191k (52.3 vs 24.7 s), noisy cylinder patches at 38k (noise 0.05 / 0.1 × edge: 3.5 / 6.3
+#: vs 3.7 / 4.4 s), halftunnel↑50k (29.2 vs 25.9 s) and beetle↑78k (99.9 vs 81.1 s; both cut open, the uncut map's
+#: heat stage thrown away). It replaces the coarse-mesh fold check, whose skips (curved scans whose MDS folds:
+#: camelhead↑) all had a bijective conformal start. Where the conformal layout is not bijective (a 38k patch with
+#: noise 0.2 × edge; halftunnel without seams) the heat stage runs: MDS may be the only bijective start.
+CONFORMAL_START_MIN_VERTICES = 30_000
 #: ``seams auto`` keeps the cut-open map only when it lowers the mean isometric distortion by at least this fraction
 #: (measured, BENCHMARKS.md §6: halftunnel 1.536 → 1.18, beetle 1.080 → 1.02) ...
 SEAM_MIN_GAIN = 0.02
@@ -124,9 +121,9 @@ OPTIONS: tuple[Option, ...] = (
            REFINE_MODES, flag="--refine"),
     Option("mds_start", "auto", "choice", "with refine sd: auto skips the fill, the heat geodesics and MDS (a) when "
            "the conformal layout is already bijective and within {ISOMETRIC_START_EXCESS:.1%} of an isometry in energy "
-           "(developable parts), (b) on meshes of >= {FOLD_CHECK_MIN_VERTICES} vertices, when the MDS layout of a "
-           "coarse mesh (~{FOLD_CHECK_VERTICES} vertices) folds beyond repair (curved scans): the same map, "
-           "faster, and the report's stress_rel_rms is then null; never when fill, geodesics, landmarks or stress "
+           "(developable parts: the same map, faster), (b) on meshes of >= {CONFORMAL_START_MIN_VERTICES} vertices "
+           "whenever the conformal layout is bijective (measured: the same map quality in less time; BENCHMARKS "
+           "§13); the report's stress_rel_rms is then null; never when fill, geodesics, landmarks or stress "
            "is set explicitly. "
            "always = compute them as a start candidate anyway (in an atlas: every chart through the pipeline "
            "instead of the charts' joint polish); never = skip them (the conformal layout or Tutte starts; an "
@@ -165,7 +162,7 @@ OPTIONS: tuple[Option, ...] = (
 
 _BY_NAME = {o.name: o for o in OPTIONS}
 _CONSTANTS = {"ALL_PAIRS_MAX": ALL_PAIRS_MAX, "ISOMETRIC_START_EXCESS": ISOMETRIC_START_EXCESS,
-              "FOLD_CHECK_MIN_VERTICES": FOLD_CHECK_MIN_VERTICES, "FOLD_CHECK_VERTICES": FOLD_CHECK_VERTICES,
+              "CONFORMAL_START_MIN_VERTICES": CONFORMAL_START_MIN_VERTICES,
               "SEAM_TRY_EXCESS": SEAM_TRY_EXCESS, "SEAM_MIN_GAIN": SEAM_MIN_GAIN}
 
 

@@ -146,56 +146,52 @@ def test_explicit_heat_options_are_never_skipped():
 
 
 @pytest.mark.slow
-def test_folded_coarse_mds_skips_the_heat_stage_same_map(monkeypatch):
-    """camelhead (MDS folds): with the fold check on at its size, the MDS of a coarse mesh folds too, so the full
-    heat stage is skipped and the map is bit-identical to the one computed with it (the start is LSCM either way)."""
+def test_folded_mds_large_mesh_skips_the_heat_stage_same_map(monkeypatch):
+    """camelhead (MDS folds, the conformal start is bijective): counted as large, the heat stage is skipped and the
+    map is bit-identical to the one computed with it (the start is the conformal layout either way)."""
     from heatparam import formats
     from heatparam.pipeline import shortcuts
 
     from conftest import shared_mesh
 
     V, F = formats.load_mesh(shared_mesh("camelhead.off"))
-    monkeypatch.setattr(shortcuts, "FOLD_CHECK_MIN_VERTICES", 5000)
+    monkeypatch.setattr(shortcuts, "CONFORMAL_START_MIN_VERTICES", 5000)
     fast, rf = parameterize(V, F)
     full, ra = parameterize(V, F, mds_start="always")
     assert np.array_equal(fast, full)
-    fc = rf["method"]["fold_check"]
-    assert fc["flips"] > 0.3 * fc["faces"] and fc["vertices"] < len(V)  # (at least COARSE_MIN: 8k targeted)
-    assert rf["method"]["geodesics"].startswith("skipped") and "geodesics" not in rf["timings_s"]
+    assert rf["method"]["geodesics"].startswith("skipped: the conformal layout is bijective")
+    assert "geodesics" not in rf["timings_s"]
     assert ra["method"]["refine"]["start"]["flips"] > 0 and ra["method"]["refine"]["start"]["layout"] == "conformal"
 
 
-def test_fold_check_that_finds_no_fold_or_fails_keeps_the_heat_stage(monkeypatch):
+def test_large_mesh_with_a_bijective_conformal_start_skips_the_heat_stage(monkeypatch):
+    """The noisy demo part counted as large (its conformal layout bijective, 0.3% above an isometry): the heat stage
+    is skipped and the map has the quality of the one computed with it (iso mean within 1e-5, both bijective)."""
     from heatparam.pipeline import shortcuts
 
-    d = datasets.flat_disk(h=0.05)
-    V = datasets.lift_sphere(d.V[:, :2], 1.2)  # a cap: LSCM 1% above an isometry, MDS does not fold
-    monkeypatch.setattr(shortcuts, "FOLD_CHECK_MIN_VERTICES", 1000)
-    _, rep = parameterize(V, d.F)
-    assert rep["method"]["fold_check"]["flips"] == 0 and "geodesics" in rep["timings_s"]
+    s = datasets.noisy_scan_part()
+    monkeypatch.setattr(shortcuts, "CONFORMAL_START_MIN_VERTICES", 1000)
+    _, rf = parameterize(s.V, s.F)
+    _, ra = parameterize(s.V, s.F, mds_start="always")
+    assert rf["method"]["geodesics"].startswith("skipped: the conformal layout is bijective")
+    assert "geodesics" not in rf["timings_s"] and "geodesics" in ra["timings_s"]
+    assert rf["metrics"]["flips"] == 0 and rf["metrics"]["boundary_crossings"] == 0
+    assert rf["metrics"]["iso_mean"] == pytest.approx(ra["metrics"]["iso_mean"], abs=1e-5)
+    monkeypatch.setattr(shortcuts, "CONFORMAL_START_MIN_VERTICES", len(s.V) + 1)  # below the size: it runs
+    _, rs = parameterize(s.V, s.F)
+    assert "geodesics" in rs["timings_s"]
 
-    def broken(*a, **k):
-        raise ValueError("coarse triangulation failed: test")
 
-    monkeypatch.setattr(shortcuts, "coarse_mesh", broken)
-    _, rep = parameterize(V, d.F)
-    assert "test" in rep["method"]["fold_check"]["failed"] and "geodesics" in rep["timings_s"]
-
-
-def test_fold_check_skips_only_beyond_what_the_repair_handles(monkeypatch):
-    """The refinement repairs an MDS start with a few flips (≤ start.MDS_REPAIR_MAX_FRACTION of the faces), so the
-    fold check only skips the heat stage above that: with the limit raised past camelhead's folds, it runs."""
-    from heatparam import formats
+def test_large_mesh_whose_conformal_layout_folds_keeps_the_heat_stage(monkeypatch, halftunnel):
+    """halftunnel's conformal layout has flipped faces: MDS may be the only bijective start, so the heat stage runs
+    whatever the size."""
     from heatparam.pipeline import shortcuts
 
-    from conftest import shared_mesh
-
-    V, F = formats.load_mesh(shared_mesh("camelhead.off"))
-    monkeypatch.setattr(shortcuts, "FOLD_CHECK_MIN_VERTICES", 5000)
-    monkeypatch.setattr(shortcuts, "MDS_REPAIR_MAX_FRACTION", 0.9)
-    _, rep = parameterize(V, F, refine_iters=1)
-    fc = rep["method"]["fold_check"]
-    assert 0 < fc["flips"] <= 0.9 * fc["faces"] and fc["usable"] and "geodesics" in rep["timings_s"]
+    V, F = halftunnel
+    monkeypatch.setattr(shortcuts, "CONFORMAL_START_MIN_VERTICES", 100)
+    _, rep = parameterize(V, F, seams="none", refine_iters=1)
+    assert rep["method"]["refine"]["start"]["conformal_flips"] > 0
+    assert "geodesics" in rep["timings_s"] and not rep["method"]["geodesics"].startswith("skipped")
 
 
 def test_noisy_developable_scan_starts_from_the_lower_energy_layout():

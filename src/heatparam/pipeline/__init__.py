@@ -7,7 +7,7 @@
     validate + compact (surface)                   mesh.validate_mesh, Surface
       └ flatten(surface)
           fill decision                            heat_stage.decide_fill (fill.needs_fill, §2.5)
-          start checks: skip the heat stage?       shortcuts.start_checks (conformal start, fold check)
+          start checks: skip the heat stage?       shortcuts.start_checks (the conformal start judged)
           fill M* → heat geodesics → MDS           heat_stage.mds_map (fill, heat, layout.mds; Eq. 2-16)
           refine: start + bijective polish         refine.refine
           metrics                                  report.map_metrics
@@ -159,28 +159,28 @@ def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = Fals
         with prog.stage("refine"):
             rf = Refinement(surface.V, surface.F, None, params, prog, surface.conformal, check.lscm,
                             surface.gradients(), starts, pause_excess)
-        return _refined(surface, opts, prog, rf, None, check.skipped, fill, check.fold_check, None, [])
+        return _refined(surface, opts, prog, rf, None, check.skipped, fill, None, [])
     m = mds_map(surface, opts, prog, fill_used, fill_reason)
     if opts.refine == "none":
         summary = map_metrics(surface.V, surface.F, m.uv, prog, m.layout)
-        method = method_report(opts, m.layout, None, m.fill, {"method": opts.refine}, check.fold_check)
+        method = method_report(opts, m.layout, None, m.fill, {"method": opts.refine})
         return Flat(m.uv, summary, method, m.layout, m.fill_surface, m.warnings)
     with prog.stage("refine"):
         rf = Refinement(surface.V, surface.F, m.uv, params, prog, surface.conformal, check.lscm,
                         surface.gradients(), starts, pause_excess)
-    return _refined(surface, opts, prog, rf, m.layout, None, m.fill, check.fold_check, m.fill_surface, m.warnings)
+    return _refined(surface, opts, prog, rf, m.layout, None, m.fill, m.fill_surface, m.warnings)
 
 
-def _refined(surface: Surface, opts: Options, prog: Progress, rf, layout, skipped, fill, fold_check, fill_surface,
+def _refined(surface: Surface, opts: Options, prog: Progress, rf, layout, skipped, fill, fill_surface,
              warnings: list[str]) -> Flat:
     """The Flat of a refinement (``refine.Refinement``), with a ``resume`` that finishes it when it paused."""
     summary = map_metrics(surface.V, surface.F, rf.x, prog, layout)
-    method = method_report(opts, layout, skipped, fill, rf.report(), fold_check)
+    method = method_report(opts, layout, skipped, fill, rf.report())
 
     def resume() -> Flat:
         with prog.stage("refine"):
             rf.run()
-        return _refined(surface, opts, prog, rf, layout, skipped, fill, fold_check, fill_surface, warnings)
+        return _refined(surface, opts, prog, rf, layout, skipped, fill, fill_surface, warnings)
 
     return Flat(rf.x, summary, method, layout, fill_surface, warnings, None if rf.done else resume)
 

@@ -2,7 +2,7 @@
 layout of M, oriented like the mesh.
 
 :func:`mds_map` runs it on a :class:`~heatparam.pipeline.surface.Surface` and returns the layout with its part of
-the report; the refinement's start check and the fold check call the same function.
+the report.
 """
 
 from __future__ import annotations

@@ -44,14 +44,12 @@ def map_metrics(V: np.ndarray, F: np.ndarray, uv: np.ndarray, prog: Progress, la
     return summary
 
 
-def method_report(opts, layout: Layout | None, skipped: str | None, fill: dict, refine: dict,
-                  fold_check: dict | None) -> dict:
+def method_report(opts, layout: Layout | None, skipped: str | None, fill: dict, refine: dict) -> dict:
     """The report's ``method`` part of one flattening."""
     return {"geodesics": skipped if layout is None else layout.mode,
             "solver_backend": None if layout is None else layout.backend, "fill": fill,
             "stress": (layout.stress if layout is not None else None) or {"method": "none"}, "refine": refine,
-            "mass_matrix": opts.mass, "mollified_edge_length": None if layout is None else layout.mollify_eps,
-            "fold_check": fold_check}
+            "mass_matrix": opts.mass, "mollified_edge_length": None if layout is None else layout.mollify_eps}
 
 
 class Result(tuple):
