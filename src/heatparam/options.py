@@ -33,13 +33,12 @@ BACKENDS = ("auto", "cholespy", "scipy", "pardiso")
 ISOMETRIC_START_EXCESS = 1e-3
 #: On meshes of at least this many vertices whose conformal start is bijective the heat geodesics and MDS are skipped
 #: too: there the polish from the conformal layout reached the same map quality in less time on every part measured
-#: (2026-12-02, mds_start auto before this rule vs never; iso mean equal to ±5e-6): the noisy demo part at 49k (MDS
-#: energy 1.0029 vs conformal 1.0237: 11.6 vs 5.5 s, iso 1.013483 both) and 196k (54.6 vs 21.0 s), the noisy
-#: cylinder with holes at 191k (52.3 vs 24.7 s), noisy cylinder patches at 38k (noise 0.05 / 0.1 × edge: 3.5 / 6.3
-#: vs 3.7 / 4.4 s), halftunnel↑50k (29.2 vs 25.9 s) and beetle↑78k (99.9 vs 81.1 s; both cut open, the uncut map's
-#: heat stage thrown away). It replaces the coarse-mesh fold check, whose skips (curved scans whose MDS folds:
-#: camelhead↑) all had a bijective conformal start. Where the conformal layout is not bijective (a 38k patch with
-#: noise 0.2 × edge; halftunnel without seams) the heat stage runs: MDS may be the only bijective start.
+#: (BENCHMARKS §13b, mds_start always vs auto: the noisy demo part at 49k 10.3 vs 6.7 s — MDS had the lower start
+#: energy, 1.0029 vs 1.0237, and needed 5 Newton iterations against 3 —, noisy cylinder patches at 38k, halftunnel↑50k,
+#: beetle↑78k; iso mean equal to 6 digits; §13c: the noisy parts at 191-196k 46-55 → 23.5-23.7 s). It replaces the
+#: coarse-mesh fold check, whose skips (curved scans whose MDS folds: camelhead↑) all had a bijective conformal
+#: start. Where the conformal layout is not bijective (a 38k patch with noise 0.2 × edge; halftunnel without seams)
+#: the heat stage runs: MDS may be the only bijective start.
 CONFORMAL_START_MIN_VERTICES = 30_000
 #: ``seams auto`` keeps the cut-open map only when it lowers the mean isometric distortion by at least this fraction
 #: (measured, BENCHMARKS.md §6: halftunnel 1.536 → 1.18, beetle 1.080 → 1.02) ...
