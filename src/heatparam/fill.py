@@ -599,7 +599,7 @@ def biharmonic_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo,
         "gaps_in_own_plane": replanned,
         "depth": None,
         "gap_vertices": int(count - n),
-        "trim": {"rule": "convex hull of the provisional (LSCM) layout; gaps triangulated at M's mean edge",
+        "trim": {"rule": "convex hull of the provisional (conformal) layout; gaps triangulated at M's mean edge",
                  "edge_length": h, "min_bay_depth_edges": MIN_BAY_DEPTH},
     })
     if skipped:

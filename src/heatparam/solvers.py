@@ -8,7 +8,7 @@ Backends (``backend=``):
   platforms): faster factorizations, a numerical refactorization that reuses the symbolic analysis
   (:meth:`Factor.refactor`), and, with MKL's iterative refinement switched off, solves as fast as CHOLMOD's.
   :func:`large_system_backend` picks it per use by measurement (BENCHMARKS.md §2, §4): the polish's Hessians at
-  every size, the heat-method systems from 100k vertices, the LSCM layout from 200k unknowns.
+  every size, the heat-method systems from 100k vertices, the conformal layouts from 200k unknowns.
 
 ``auto`` takes the first available of cholespy, scipy (then PARDISO per :func:`large_system_backend`).
 """

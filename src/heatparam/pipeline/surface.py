@@ -1,5 +1,5 @@
 """The surface a flattening works on: the validated mesh without unreferenced vertices, with what several stages
-share computed once (its LSCM layout, the refinement's per-face gradients)."""
+share computed once (its conformal layout, the refinement's per-face gradients)."""
 
 from __future__ import annotations
 

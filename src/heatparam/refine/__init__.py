@@ -3,8 +3,8 @@
 Classical MDS minimizes strain (Eq. 13), not the stress of Eq. 1, and folds on strongly curved disks. This stage
 turns a layout into a bijective map at true scale:
 
-1. **Start** (``start``): of the MDS layout and the free-boundary LSCM layout scaled to the 3D area, the bijective
-   one (no flipped triangle, no boundary crossing) with the lower energy; if neither is bijective, Tutte's
+1. **Start** (``start``): of the MDS layout and the conformal layout (spectral, no pins) scaled to the 3D area, the
+   bijective one (no flipped triangle, no boundary crossing) with the lower energy; if neither is bijective, Tutte's
    embedding of the mesh with every hole closed by a fan (``layout.tutte``), bijective by Tutte's theorem.
 2. **Polish** (``newton``): symmetric Dirichlet energy Σ A_f (|J|² + |J⁻¹|²) (``energy``), minimized by projected
    Newton with the closed-form Hessian eigensystem of Smith et al. 2019, coarse-to-fine on large meshes
@@ -72,7 +72,7 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefinePa
     uv : (n,2) the MDS layout, or None when none was computed (the pipeline found it could not win).
     params : :class:`RefineParams`.
     progress : a ``progress.Progress`` (bars), or None.
-    conformal : returns the LSCM layout if already computed (the fill decision computes it).
+    conformal : returns the conformal layout if already computed (the fill decision computes it).
     lscm : the conformal start already judged (``start.lscm_start``), if any.
     surface : ``energy.surface_gradients(V, F)`` if already computed.
     extra_starts : further named start candidates (n,2), judged with the others (``start.choose_start``).
