@@ -105,10 +105,10 @@ def spectral_conformal(V: np.ndarray, F: np.ndarray, backend: str = "auto") -> t
 
     Solved by inverse iteration, x ← (Q + εB)⁻¹ B x, B-centred and B-normalized at every step (one factorization,
     ``solvers.Factor``; PARDISO for large systems), from the 3D distances to two far boundary vertices (a start that
-    a rigid motion of the input does not change),
-    until the B-unit layout moves by less than :data:`SCP_TOL` (at most :data:`SCP_MAX_ITERS` solves; 4-12 on the
-    shared meshes), then turned so that the longest boundary loop's first vertex and the vertex of that loop
-    farthest from it lie on a line parallel to the u axis (as LSCM's two pins were).
+    a rigid motion of the input does not change), until the B-unit layout moves by less than :data:`SCP_TOL` (at
+    most :data:`SCP_MAX_ITERS` solves; 3-17 on the meshes of ``BENCHMARKS.md`` §13a, 28 on a noisy 191k part cut
+    open), then turned so that the longest boundary loop's first vertex and the vertex of that loop farthest from
+    it lie on a line parallel to the u axis (as LSCM's two pins were).
     Returns (uv (n,2), solves); vertices no face uses are at 0.
     """
     from heatparam.solvers import Factor, large_system_backend
@@ -159,7 +159,10 @@ def spectral_conformal(V: np.ndarray, F: np.ndarray, backend: str = "auto") -> t
     # x is determined up to a rotation (x and its 90° turn have the same energy): turn it as LSCM's pins did, the
     # longest loop's first vertex a and the vertex of that loop farthest from it on the +u axis
     d = uv[far] - uv[a]
-    c, s = d / max(float(np.hypot(*d)), 1e-300)
+    r = float(np.hypot(*d))
+    if not r > 0.0:  # a and far at one point (a degenerate layout): leave it as it is
+        return uv, solves
+    c, s = d / r
     return uv @ np.array([[c, -s], [s, c]]), solves
 
 
@@ -171,7 +174,7 @@ def conformal_layout(V: np.ndarray, F: np.ndarray, backend: str = "auto") -> np.
     similarity on developable surfaces. Measured against LSCM with two far boundary vertices pinned (``igl.lscm``,
     the previous layout here; 2026-12-02): start energy lower or equal on every shared mesh and generated surface
     (beetle 1.064 → 1.044, halftunnel cut open 1.218 → 1.069, the demo's part 1.060 → 1.003, its 196k version 2.08
-    → 1.05, a 191k noisy cylinder with holes 2.82 → 1.14); it costs one factorization (as LSCM) and 5-15 solves.
+    → 1.05, a 191k noisy cylinder with holes 2.82 → 1.14); it costs one factorization (as LSCM) and 3-28 solves.
     """
     uv, _ = spectral_conformal(V, F, backend)
     if not np.isfinite(uv).all():
