@@ -600,7 +600,8 @@ def biharmonic_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo,
         "depth": None,
         "gap_vertices": int(count - n),
         "trim": {"rule": "convex hull of the provisional (conformal) layout; gaps triangulated at M's mean edge",
-                 "edge_length": h, "min_bay_depth_edges": MIN_BAY_DEPTH},
+                 "edge_length": h, "min_bay_depth_edges": MIN_BAY_DEPTH,
+                 "min_bay_depth_diameter": MIN_BAY_DEPTH_REL},
     })
     if skipped:
         res.warnings.append(f"{skipped} gap(s) of the fill could not be triangulated (their outline self-intersects "

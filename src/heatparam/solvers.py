@@ -34,7 +34,8 @@ def available_backends() -> list[str]:
 
 
 #: Default threshold of :func:`large_system_backend`: systems of at least this many unknowns use PARDISO when it is
-#: installed and the backend is ``auto`` (the LSCM layout: 196k-vertex cylinder patch 1.7 s vs 10.0 s for igl.lscm).
+#: installed and the backend is ``auto`` (a pinned LSCM solve, 2026-11: 196k-vertex cylinder patch 1.7 s vs 10.0 s for
+#: igl.lscm).
 PARDISO_MIN_UNKNOWNS = 200_000
 
 

@@ -1,10 +1,11 @@
-"""The conformal layout: the spectral conformal map without pins (Mullen et al. 2008) and LSCM with pins."""
+"""The conformal layout: the spectral conformal map without pins (Mullen et al. 2008), against LSCM with pins."""
 
 import igl
 import numpy as np
+import pytest
 
 from heatparam import datasets
-from heatparam.layout.conformal import conformal_layout, lscm, spectral_conformal
+from heatparam.layout.conformal import conformal_layout, spectral_conformal
 from heatparam.mesh.topology import boundary_loops
 from heatparam.refine.start import lscm_start
 
@@ -60,9 +61,29 @@ def test_deterministic_and_turned_like_the_pins():
     assert abs(uv1[b, 1] - uv1[a, 1]) < 1e-12 and uv1[b, 0] > uv1[a, 0]
 
 
-def test_lscm_with_pins_keeps_them():
-    s = datasets.cylinder_patch(h=0.15)
-    loop = boundary_loops(s.F)[0]
-    pins = np.array([loop[0], loop[len(loop) // 2]])
-    uv = lscm(s.V, s.F, pins, np.array([[0.0, 0.0], [1.0, 0.0]]))
-    assert np.allclose(uv[pins], [[0.0, 0.0], [1.0, 0.0]])
+@pytest.mark.parametrize("name", ["cylinder_with_holes", "cone_s_strip"])
+def test_conformal_energy_is_libigls_and_backends_agree(name):
+    """The conformal energy's matrix Q is libigl's: minimized with the same two pins (holes included) it gives
+    igl.lscm's map; and the spectral map is the same with every factorization backend."""
+    import scipy.sparse.linalg as spla
+
+    from heatparam.layout.conformal import _conformal_energy
+
+    s = getattr(datasets, name)()
+    n = len(s.V)
+    outer = max(boundary_loops(s.F), key=len)
+    pins, pin_uv = np.array([outer[0], outer[len(outer) // 2]]), np.array([[0.0, 0.0], [1.0, 0.0]])
+    Q, _, _ = _conformal_energy(s.V, s.F)
+    fixed = np.concatenate([pins, pins + n])
+    free = np.setdiff1d(np.arange(2 * n), fixed)
+    x = np.zeros(2 * n)
+    x[fixed] = pin_uv.T.ravel()
+    Q = Q.tocsr()
+    x[free] = spla.spsolve(Q[free][:, free].tocsc(), -(Q[free][:, fixed] @ x[fixed]))
+    ours = np.column_stack([x[:n], x[n:]])
+    ref, _ = igl.lscm(s.V, s.F, pins, pin_uv)
+    assert np.abs(ours - ref).max() <= 1e-8 * np.ptp(ref, axis=0).max()
+    uv, _ = spectral_conformal(s.V, s.F)
+    for backend in ("scipy", "cholespy"):
+        assert np.allclose(spectral_conformal(s.V, s.F, backend=backend)[0], uv, atol=1e-9)
+

@@ -7,6 +7,7 @@ import pytest
 
 from heatparam import datasets, metrics, pipeline, refine
 from heatparam.layout import tutte
+from heatparam.layout.conformal import conformal_layout
 from heatparam.mesh import boundary_loops
 from heatparam.refine import energy, multilevel, newton, scaffold, start
 
@@ -439,7 +440,7 @@ def test_coarse_to_fine_on_a_surface_with_holes_is_bijective():
     g, _ = energy.surface_gradients(s.V, s.F)
     disk = tutte.build_disk(s.V, s.F)
     loops = [disk.outer, *disk.holes]
-    x0 = start.conformal_start(s.V, s.F, disk)
+    x0 = conformal_layout(s.V, s.F)
     y, info = multilevel.coarse_to_fine(s.V, s.F, x0, loops, g, min_vertices=0, max_iters=200, tol=1e-6,
                                     backend="auto")
     assert info["used"] and y is not None, info
@@ -561,7 +562,7 @@ def test_multilevel_polish_recurses_and_matches_single_level(monkeypatch):
     g, area = energy.surface_gradients(V, F)
     disk = tutte.build_disk(V, F)
     loops = [disk.outer, *disk.holes]
-    x0 = start.conformal_start(V, F, disk)
+    x0 = conformal_layout(V, F)
     monkeypatch.setattr(multilevel, "COARSE_MIN", 500)
     kw = dict(max_iters=200, tol=1e-6, backend="auto")
     r1, ml1 = multilevel.multilevel_polish(V, F, x0, loops, g, area, min_vertices=0, **kw)

@@ -271,8 +271,9 @@ def _farthest_per_group(V, rows, grp, src, key, k) -> tuple[np.ndarray, np.ndarr
 
 
 def _lscm(Vl: np.ndarray, Fl: np.ndarray, p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
-    """LSCM (``igl.lscm``: 16.7 ms vs 28.5 ms for ``layout.conformal.lscm`` on cow's 34 charts at once, the same map
-    to 5e-12) of the faces ``Fl`` with the pins p0 at (0,0) and p1 at (1,0); rows no face uses stay at 0."""
+    """LSCM (``igl.lscm``: 16.7 ms vs 28.5 ms for our PARDISO LSCM, removed 2026-12-02, on cow's 34 charts at once,
+    the same map to 5e-12) of the faces ``Fl`` with the pins p0 at (0,0) and p1 at (1,0); rows no face uses stay
+    at 0."""
     import igl
 
     used = np.unique(Fl)

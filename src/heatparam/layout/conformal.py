@@ -1,5 +1,6 @@
 """Conformal layouts: the spectral conformal map (Mullen et al. 2008: no pins; ``conformal_layout``, scaled to the
-3D area), least-squares conformal maps with pins (LSCM, Lévy et al. 2002) and orientation of a layout.
+3D area) and orientation of a layout. (LSCM with two pins, Lévy et al. 2002, was the conformal layout until
+2026-12-02; the atlas's charts still use ``igl.lscm``.)
 
 Not MDS: the fill uses the conformal layout to decide where M* extends, the refinement as a start candidate. Both are
 exact up to a similarity on developable surfaces.
@@ -54,34 +55,6 @@ def _conformal_energy(V: np.ndarray, F: np.ndarray) -> tuple[sp.csc_matrix, np.n
     half = 0.5 * np.linalg.norm(V[i] - V[j], axis=1)
     mass = np.bincount(i, half, minlength=n) + np.bincount(j, half, minlength=n)
     return Q, mass, loops
-
-
-def lscm(V: np.ndarray, F: np.ndarray, pinned: np.ndarray, pinned_uv: np.ndarray, backend: str = "auto") -> np.ndarray:
-    """Least-squares conformal map (Lévy et al. 2002) with ``pinned`` (k,) vertices at ``pinned_uv`` (k,2).
-
-    Minimizes the conformal energy E_C (:func:`_conformal_energy`); its matrix Q restricted to the free unknowns is
-    SPD once two vertices are pinned; it is factorized by ``solvers.Factor`` (PARDISO for large systems when
-    installed: ``solvers.large_system_backend``). Returns uv (n,2); vertices no face uses stay at 0.
-    """
-    from heatparam.solvers import Factor, large_system_backend
-
-    n = len(V)
-    Q, _, _ = _conformal_energy(V, F)
-    used = np.zeros(n, dtype=bool)
-    used[F.ravel()] = True
-    fixed = np.concatenate([pinned, pinned + n])
-    free = np.setdiff1d(np.flatnonzero(np.concatenate([used, used])), fixed)
-    xp = np.concatenate([pinned_uv[:, 0], pinned_uv[:, 1]])
-    Qf = Q[free]
-    rhs = -(Qf[:, fixed] @ xp)
-    Qff = Qf[:, free]
-    x = np.zeros(2 * n)
-    x[fixed] = xp
-    try:
-        x[free] = Factor(Qff, large_system_backend(len(free), backend)).solve(rhs)
-    except (ValueError, RuntimeError) as exc:  # not positive definite: degenerate faces, several components
-        raise HeatparamError(f"the conformal (LSCM) layout failed ({exc}): is the mesh degenerate?") from exc
-    return np.column_stack([x[:n], x[n:]])
 
 
 #: Spectral conformal map: the inverse iteration stops when its layout (B-unit) moves by less than this

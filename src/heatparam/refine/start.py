@@ -14,16 +14,11 @@ import numpy as np
 from heatparam import metrics
 from heatparam.errors import HeatparamError
 from heatparam.layout.conformal import conformal_layout
-from heatparam.layout.tutte import Disk, build_disk, tutte
+from heatparam.layout.tutte import Disk, tutte
 from heatparam.options import ISOMETRIC_START_EXCESS
 from heatparam.refine.energy import det, jacobians, normalized_energy, surface_gradients
 from heatparam.refine.multilevel import repair_flips
 
-
-def conformal_start(V: np.ndarray, F: np.ndarray, disk: Disk) -> np.ndarray:
-    """The spectral conformal layout scaled to the 3D area and centred (``layout.conformal.conformal_layout``),
-    (n,2). ``disk`` is not needed (no pins); kept for the callers' symmetry with ``tutte``."""
-    return conformal_layout(V, F)
 
 def bijectivity(uv: np.ndarray, F: np.ndarray, g: np.ndarray) -> tuple[int, int]:
     """(flipped faces, boundary crossings) of a layout; crossings are only counted when nothing is flipped."""
@@ -76,7 +71,7 @@ def lscm_start(V: np.ndarray, F: np.ndarray, conformal: Callable[[], np.ndarray]
     """
     g, area = surface if surface is not None else surface_gradients(V, F)
     try:
-        xl = np.array(conformal() if conformal is not None else conformal_start(V, F, build_disk(V, F)))
+        xl = np.array(conformal() if conformal is not None else conformal_layout(V, F))
     except HeatparamError as exc:  # a degenerate mesh: the conformal layout is only a candidate, MDS or Tutte serve
         return LscmStart(None, -1, -1, None, str(exc))
     if not np.isfinite(xl).all():  # never hand NaN on: the candidate is dropped, MDS or Tutte still serve
