@@ -2,8 +2,11 @@
 the public meshes that flatten and the generated surfaces, default options and ``refine="none"``) gives the same
 map and the same metrics as the code before it.
 
-Recorded on this project's machine kind; the map is compared bit for bit (its sha256) and, as a diagnostic that
-holds across CPUs too, against the stored array to 1e-9 of its extent."""
+Recorded on this project's machine kind. In the recording's environment (``record.environment``: CPU model and
+flags, numerical libraries' versions) the map is compared bit for bit (its sha256) and, as a diagnostic, against the
+stored array to 1e-9 of its extent. In another environment round-off differs (the same code: 1e-8 of the extent on
+beetle, stop 19) and is amplified by the Newton iterations, so the map is compared to ``OTHER_ENV_TOL`` of its extent
+and the float metrics to that relative tolerance; counts (flips, crossings) and the seams still exactly."""
 
 from __future__ import annotations
 
@@ -12,7 +15,13 @@ import math
 
 import numpy as np
 import pytest
-from baseline.record import METRICS, MODES, SHARED, cases, digest, run
+from baseline.record import METRICS, MODES, SHARED, cases, digest, environment, run
+
+#: Tolerance (of the extent, and relative for float metrics) outside the recording's environment: 10x the largest
+#: difference measured between two machines (beetle, 1.05e-8 of its extent), 100x below what one Newton iteration
+#: more or less moves a map (refine_tol 1e-7 instead of 1e-6: camelhead 5.7e-5, cylinder_with_holes 1.3e-5 of the
+#: extent; stop 19)
+OTHER_ENV_TOL = 1e-7
 
 
 def _reference():
@@ -32,15 +41,19 @@ def test_same_maps_as_before_the_restructuring(name):
     if not name.startswith("generated:") and not (SHARED / name).exists():
         pytest.skip(f"{SHARED / name} not found")
     V, F = next((V, F) for n, V, F in cases(only=name))
+    same_env = table.get("_environment") == environment()
+    tol = 1e-9 if same_env else OTHER_ENV_TOL
     for mode in MODES:
         key = f"{name}|{mode}"
         uv, Fuv, met = run(V, F, mode)
         ref = arrays[key]
         assert uv.shape == ref.shape, key
         extent = float(np.ptp(ref, axis=0).max())
-        assert np.abs(uv - ref).max() <= 1e-9 * extent, (key, float(np.abs(uv - ref).max()))
-        assert digest(uv) == table[key]["uv_sha"], f"{key}: same map to 1e-9 but not bit for bit"
+        assert np.abs(uv - ref).max() <= tol * extent, (key, float(np.abs(uv - ref).max()) / extent)
+        if same_env:
+            assert digest(uv) == table[key]["uv_sha"], f"{key}: same map to 1e-9 but not bit for bit"
         assert digest(np.asarray(Fuv, dtype=np.int64)) == table[key]["fuv_sha"], key
         for k in METRICS:
             a, b = met[k], table[key]["metrics"][k]
-            assert a == b or (isinstance(a, float) and math.isclose(a, b, rel_tol=1e-12)), (key, k, a, b)
+            rel = 1e-12 if same_env else OTHER_ENV_TOL
+            assert a == b or (isinstance(a, float) and math.isclose(a, b, rel_tol=rel)), (key, k, a, b)
