@@ -7,7 +7,10 @@ Usage: ``python bench/bench_seams.py [mesh ...]`` (default halftunnel.off beetle
   shared, so wall time says little alone), Newton iterations of the kept map and of the map without seams;
 * the cut mesh's flattening alone (``pipeline.flatten(cut, seamed=True)``), from the same uncut map, as
   - ``heat stage`` — ``mds_start="always"``: the fill / geodesics / MDS run on the cut mesh (before 2026-12-01),
-  - ``default`` — the heat stage skipped on the cut mesh (``pipeline.shortcuts``, case (c)),
+  - ``no reopened start`` — the heat stage skipped on the cut mesh (``pipeline.shortcuts``, case (c)), the start
+    candidates of ``flatten`` alone (the conformal layout, else Tutte): the cut mesh's default before stop 19,
+  - ``conformal reopened`` — as the seams stage runs it since stop 19: its conformal layout with crossing slits
+    reopened (``refine.seam_start.reopen_crossing_slits``) offered as a start,
   - ``+ uncut start`` — the uncut map with its slits opened (``refine.seam_start.open_slits``) offered as a start,
   - ``uncut start only`` / ``Tutte only`` — ``refine.refine`` from that start alone / from Tutte's embedding alone,
   each with its start layout and energy, Newton iterations, final energy, iso mean, flips and boundary crossings.
@@ -28,7 +31,7 @@ from heatparam.pipeline import flatten, parameterize
 from heatparam.pipeline.surface import Surface
 from heatparam.progress import Progress
 from heatparam.refine import LscmStart, refine
-from heatparam.refine.seam_start import open_slits
+from heatparam.refine.seam_start import open_slits, reopen_crossing_slits
 
 NO_LSCM = LscmStart(None, -1, -1, None, "left out by the benchmark")
 
@@ -73,7 +76,13 @@ def main(names: list[str]) -> None:
         cut = Surface(Vs, Fs, validate_mesh(Vs, Fs))
         x, orep = open_slits(flat.uv[src], Fs, src)
         runs = [("cut: heat stage (before)", make_options(None, mds_start="always"), None),
-                ("cut: default", opts, None)]
+                ("cut: no reopened start", opts, None)]
+        xr, rrep = reopen_crossing_slits(cut.conformal(), Fs, src)
+        if xr is not None:
+            runs.append((f"cut: conformal reopened ({rrep['closed']} seam vertices)", opts,
+                         {"conformal_reopened": xr}))
+        else:
+            print(f"| {name} | cut: conformal reopened | – | – | none: {rrep['reason']} |")
         if x is not None:
             runs.append(("cut: + uncut start", opts, {"uncut": x}))
         for variant, o, starts in runs:

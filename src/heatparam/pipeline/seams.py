@@ -21,7 +21,7 @@ from heatparam.options import SEAM_MIN_GAIN, SEAM_PAUSE_EXCESS, SEAM_PAUSE_FLOOR
 from heatparam.pipeline.report import Flat
 from heatparam.pipeline.surface import Surface
 from heatparam.progress import Progress
-from heatparam.refine.seam_start import open_slits
+from heatparam.refine.seam_start import open_slits, reopen_crossing_slits
 
 
 class Cut(NamedTuple):
@@ -85,12 +85,18 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat,
     lengths = [float(np.linalg.norm(np.diff(surface.V[p], axis=0), axis=1).sum()) for p in paths]
     rep.update(seams=len(paths), length=round(sum(lengths), 9), longest=round(max(lengths), 9),
                split_vertices=int(len(Vs) - len(surface.V)))
-    starts = None
+    starts: dict[str, np.ndarray] = {}
+    if opts.refine != "none":
+        with prog.stage("seams"):
+            x, rep["conformal_reopened"] = _reopened_conformal(cut_surface, src)
+        if x is not None:
+            starts["conformal_reopened"] = x
     if uncut_start and opts.refine != "none":
         with prog.stage("seams"):
             x, rep["uncut_start"] = open_slits(flat.uv[src], Fs, src)
-        starts = None if x is None else {"uncut": x}
-    cut = flatten(cut_surface, opts, prog, True, starts, seam_pause(surface, opts))
+        if x is not None:
+            starts["uncut"] = x
+    cut = flatten(cut_surface, opts, prog, True, starts or None, seam_pause(surface, opts))
     if opts.seams == "auto":
         better, flat, cut = _decide(flat, cut)
     else:
@@ -122,6 +128,19 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat,
                f"(iso mean {iso:.4f}{' where its polish paused' if paused else ''} → {iso_s:.4f}); the OBJ's vt rows "
                "split along them (seams='none': one uncut piece)")
     return SeamResult(cut, Cut(cut_surface, src, paths), rep, [*cut.warnings, warning], flat)
+
+
+def _reopened_conformal(cut_surface: Surface, source: np.ndarray) -> tuple[np.ndarray | None, dict]:
+    """The cut surface's conformal layout with its crossing slits reopened (``refine.seam_start``), offered to the
+    refinement as the start candidate ``"conformal_reopened"`` when the layout crosses only there; (layout or None,
+    the report's ``seams.conformal_reopened``)."""
+    try:
+        uv = cut_surface.conformal()
+    except HeatparamError as exc:  # the refinement's own start check reports it again; Tutte still serves
+        return None, {"reason": f"no conformal layout ({exc})"}
+    if not np.isfinite(uv).all():
+        return None, {"reason": "the conformal layout has non-finite coordinates"}
+    return reopen_crossing_slits(uv, cut_surface.F, source)
 
 
 def _finished(f: Flat) -> Flat:
