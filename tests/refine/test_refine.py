@@ -626,3 +626,52 @@ def test_refine_starts_from_a_repaired_mds_layout_when_it_is_better():
     assert st["flips"] > 0 and st["repair"]["repaired"] and st["layout"] == "mds"
     assert st["energy"]["mds"] < st["energy"]["conformal"]
     assert rep["bijective"]
+
+
+def test_a_step_that_leaves_boundaries_touching_is_undone(monkeypatch):
+    """When the scaffold cannot be built around the layout a step produced (boundaries touch: round-off beside the
+    barrier), the polish stops with the layout before that step, the last one a scaffold was built around."""
+    s = datasets.cylinder_with_holes(h=0.1)
+    disk = tutte.build_disk(s.V, s.F)
+    g, area = energy.surface_gradients(s.V, s.F)
+    x0 = tutte.tutte(s.V, disk)[: len(s.V)]
+    built = []
+    real = newton.build_scaffold
+
+    def failing(x, loops):
+        if len(built) == 3:
+            raise ValueError("cannot triangulate the scaffold (boundary loops touch or cross): test")
+        built.append(x.copy())
+        return real(x, loops)
+
+    monkeypatch.setattr(newton, "build_scaffold", failing)
+    p = newton.Polish(x0, s.F, g, area, disk.loops)
+    p.run()
+    assert p.stop.startswith("scaffold failed") and "the layout before it is kept" in p.stop
+    assert np.array_equal(p.x, built[-1]) and p.it == 3
+    assert p.report()["energy_end"] * 4 == pytest.approx(newton.symmetric_dirichlet(
+        newton.jacobians(p.x, s.F, g), area / area.sum())[0])
+
+
+def test_coarse_to_fine_drops_a_coarse_level_whose_scaffold_failed(monkeypatch):
+    """A coarse polish that stops because its scaffold could not be built (boundaries touching) is dropped before
+    any prolongation or repair, whatever its energy (halftunnel↑201k: 72 s of failed repair before this rule)."""
+    V, F = _load("halftunnel.off")
+    disk = tutte.build_disk(V, F)
+    g, _ = energy.surface_gradients(V, F)
+    x0 = tutte.tutte(V, disk)[: len(V)]
+    monkeypatch.setattr(multilevel, "COARSE_MIN", 250)
+    real, calls = newton.build_scaffold, []
+
+    def failing(x, loops):  # the coarse level's 4th scaffold cannot be built
+        calls.append(len(x))
+        if len(x) < len(V) and len(calls) == 4:
+            raise ValueError("cannot triangulate the scaffold (boundary loops touch or cross): test")
+        return real(x, loops)
+
+    monkeypatch.setattr(newton, "build_scaffold", failing)
+    monkeypatch.setattr(multilevel, "prolongate", lambda *a: pytest.fail("prolongated a dropped level"))
+    y, info = multilevel.coarse_to_fine(V, F, x0, disk.loops, g, min_vertices=0, max_iters=200, tol=1e-6,
+                                        backend="auto")
+    assert y is None and not info["used"] and "boundaries touch" in info["reason"], info
+    assert info["coarse_polish"]["stop"].startswith("scaffold failed")

@@ -35,6 +35,10 @@ MULTILEVEL_MIN_EXCESS = 1e-2  # coarse-to-fine only when the start's energy exce
 #: took 92 fine Newton iterations (118 s; 159 s end to end); dropped: 40 from Tutte (57 s; 101 s), to a lower
 #: energy (1.000714 vs 1.000723)
 COARSE_MIN_GAIN = 0.5
+#: A coarse level whose polish stopped because its scaffold could not be built (two boundaries touch after the
+#: last step, within round-off) is dropped whatever its energy: halftunnel upsampled to 201k, its map without seams
+#: from Tutte, the 10.7k level stopped so at energy 1.357 (from 1275); its prolongation to the 33k level had 197
+#: flipped faces that 36 rounds of repair did not fix, 72 s spent before the level was dropped (stop 19).
 
 #: After a converged coarse level the fine polish stops at this multiple of ``refine_tol``: its start is already
 #: within ~0.5% of the minimum, and at 1e-6 its last 2 of 7 Newton iterations (camelhead↑182k, ~2.5 s each) gained
@@ -204,6 +208,10 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
     xc, cinfo = crun.x, crun.report()
     info.update(coarse_polish=cinfo, coarse_multilevel=cml, guards=int(len(ears)))
     e0, e1 = cinfo["energy_start"], cinfo["energy_end"]
+    if cinfo["stop"].startswith("scaffold failed"):  # module constant COARSE_MIN_GAIN's note
+        return None, info | {"used": False, "seconds": round(time.perf_counter() - t0, 3),
+                             "reason": ("the coarse polish stopped where its boundaries touch (its scaffold "
+                                        "failed): its prolongation would fold between them")}
     if not cinfo["converged"] and e1 - 1.0 > COARSE_MIN_GAIN * (e0 - 1.0):
         return None, info | {"used": False, "seconds": round(time.perf_counter() - t0, 3),
                              "reason": (f"the coarse polish stopped ({cinfo['stop']}) at energy {e1:.4g} from "

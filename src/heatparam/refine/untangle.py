@@ -69,6 +69,10 @@ def untangle(x: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, free
     lam = UNTANGLE_LAMBDA
 
     def energy(z: np.ndarray, eps: float) -> tuple[float, np.ndarray]:
+        with np.errstate(divide="ignore", invalid="ignore"):  # χ = 0 (D + s cancels for D ≪ -ε): E = inf, L-BFGS
+            return _energy(z, eps)                            # backs off from such a point
+
+    def _energy(z: np.ndarray, eps: float) -> tuple[float, np.ndarray]:
         y[fi] = z.reshape(-1, 2)
         J = jacobians(y, Fr, gr)
         D = det(J)
