@@ -305,7 +305,7 @@ class Polish:
         self.max_iters = max_iters
         self.done = False
         self._H_last = self._parked = self.pat = None
-        self._x_ok: np.ndarray | None = None  # the last layout a scaffold was built around
+        self._ok: tuple | None = None  # (x, J, Es) of the last layout a scaffold was built around
         # surface Jacobians and energy of the current layout, carried from step to step
         self.J = jacobians(self.x, F, g)
         self.Es = symmetric_dirichlet(self.J, self.w_surf)[0]
@@ -357,14 +357,11 @@ class Polish:
                 sy = _system(self.x, self.J, self.Es, F, g, w_surf, self.w_scaf, self.loops, self.pat)
             except ValueError as exc:
                 self.stop = f"scaffold failed: {exc}"
-                if self._x_ok is not None:  # the last step left boundaries touching: keep the layout before it
-                    self.x, self.it = self._x_ok, self.it - 1
-                    self.J = jacobians(self.x, F, g)
-                    self.Es = symmetric_dirichlet(self.J, w_surf)[0]
-                    self.hist[-1] = self.Es
+                if self._ok is not None:  # the last step left boundaries touching: keep the layout before it
+                    (self.x, self.J, self.Es), self.it = self._ok, self.it - 1
                     self.stop += " (after the last step; the layout before it is kept)"
                 break
-            self._x_ok = self.x  # a scaffold was built around it: its boundaries neither touch nor cross
+            self._ok = (self.x, self.J, self.Es)  # a scaffold was built around x: no boundaries touch or cross
             self.hist.append(self.Es)
             direction = _safe_direction(sy, self.fac, self.backend)
             if isinstance(direction, str):

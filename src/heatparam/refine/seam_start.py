@@ -35,6 +35,8 @@ from __future__ import annotations
 import numpy as np
 
 from heatparam import metrics
+from heatparam.mesh.planar import signed_areas
+from heatparam.mesh.topology import boundary_edges
 
 #: Each seam-vertex copy moves this fraction of its shortest incident edge (in the layout) into its own side ...
 SLIT_STEP = 0.25
@@ -44,17 +46,6 @@ SLIT_MIN_AREA_FRACTION = 0.5
 
 #: ... at most this many times.
 SLIT_HALVINGS = 30
-
-
-def _signed_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
-    a, b, c = uv[F[:, 0]], uv[F[:, 1]], uv[F[:, 2]]
-    return 0.5 * ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
-
-
-def _boundary_edges(F: np.ndarray, n: int) -> np.ndarray:
-    """(k,2) the half-edges without a twin: the boundary, oriented as its faces."""
-    he = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    return he[~np.isin(he[:, 0] * n + he[:, 1], he[:, 1] * n + he[:, 0])]
 
 
 def _inward_normals(uv: np.ndarray, bnd: np.ndarray) -> np.ndarray:
@@ -72,9 +63,9 @@ def _inward_normals(uv: np.ndarray, bnd: np.ndarray) -> np.ndarray:
 
 def _push_apart(uv: np.ndarray, F: np.ndarray, bnd: np.ndarray, moved: np.ndarray) -> tuple[np.ndarray | None, dict]:
     """Move the seam-vertex copies ``moved`` (k,) of the layout ``uv`` (n,2), whose faces are all positive,
-    ``SLIT_STEP`` × their shortest edge along the inward normal of the boundary ``bnd`` (:func:`_boundary_edges`)
-    at them, halving the step of the vertices of any face left with less than ``SLIT_MIN_AREA_FRACTION`` of its
-    area; (layout or None, report)."""
+    ``SLIT_STEP`` × their shortest edge along the inward normal of the boundary ``bnd`` (k,2)
+    (``mesh.topology.boundary_edges``) at them, halving the step of the vertices of any face left with less than
+    ``SLIT_MIN_AREA_FRACTION`` of its area; (layout or None, report)."""
     n = len(uv)
     normal = _inward_normals(uv, bnd)[moved]
     norm = np.linalg.norm(normal, axis=1)
@@ -90,14 +81,14 @@ def _push_apart(uv: np.ndarray, F: np.ndarray, bnd: np.ndarray, moved: np.ndarra
     np.minimum.at(shortest, edges[:, 0], elen)
     np.minimum.at(shortest, edges[:, 1], elen)
     step = SLIT_STEP * shortest[moved]
-    area0 = _signed_areas(uv, Ft)
+    area0 = signed_areas(uv, Ft)
     pos = np.full(n, -1)
     pos[moved] = np.arange(len(moved))
     halvings = 0
     while True:
         x = uv.copy()
         x[moved] += step[:, None] * normal
-        bad = _signed_areas(x, Ft) < SLIT_MIN_AREA_FRACTION * area0
+        bad = signed_areas(x, Ft) < SLIT_MIN_AREA_FRACTION * area0
         if not bad.any():
             break
         if halvings == SLIT_HALVINGS:
@@ -131,10 +122,10 @@ def open_slits(uv: np.ndarray, F: np.ndarray, source: np.ndarray) -> tuple[np.nd
     moved = np.flatnonzero(np.bincount(source)[source] > 1)
     if len(moved) == 0:
         return None, {"reason": "no seams"}
-    flipped = int((_signed_areas(uv, F) <= 0).sum())
+    flipped = int((signed_areas(uv, F) <= 0).sum())
     if flipped:
         return None, {"reason": f"the uncut map has {flipped} flipped faces"}
-    return _push_apart(uv, F, _boundary_edges(F, len(uv)), moved)
+    return _push_apart(uv, F, boundary_edges(F), moved)
 
 
 #: :func:`reopen_crossing_slits` closes the seam vertices on crossing edges, then, until the reopened layout is
@@ -159,10 +150,10 @@ def reopen_crossing_slits(uv: np.ndarray, F: np.ndarray, source: np.ndarray) -> 
     ``reason`` when ``uv`` has no crossing, a crossing without a seam copy on it, or none was found.
     """
     uv = np.asarray(uv, dtype=np.float64)
-    flipped = int((_signed_areas(uv, F) <= 0).sum())
+    flipped = int((signed_areas(uv, F) <= 0).sum())
     if flipped:
         return None, {"reason": f"the layout has {flipped} flipped faces"}
-    bnd = _boundary_edges(F, len(uv))
+    bnd = boundary_edges(F)
     pairs = metrics.crossing_pairs(uv, bnd)
     if len(pairs) == 0:
         return None, {"reason": "no boundary crossing"}
@@ -188,7 +179,7 @@ def reopen_crossing_slits(uv: np.ndarray, F: np.ndarray, source: np.ndarray) -> 
         report.update(closed=int(len(closed)), widened=reached)
         is_moved = np.zeros(len(uv), dtype=bool)
         is_moved[moved] = True
-        if (_signed_areas(y, F[is_moved[F].any(axis=1)]) <= 0).any():
+        if (signed_areas(y, F[is_moved[F].any(axis=1)]) <= 0).any():
             report["reason"] = "closing the slits flips a face"
             continue
         x, rep = _push_apart(y, F, bnd, moved)
