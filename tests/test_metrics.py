@@ -295,3 +295,57 @@ def test_stress():
     assert M.stress(2 * uv, D, sources) == pytest.approx(1.0, rel=1e-12)  # no rescaling
     with pytest.raises(ValueError):
         M.stress(uv, D.T, sources)
+
+
+def covering_counts(uv: np.ndarray, F: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """O(points × faces) reference: how many triangles of the layout contain each point strictly inside."""
+    a, b, c = uv[F[:, 0]], uv[F[:, 1]], uv[F[:, 2]]
+
+    def side(p, q, x):  # (points, faces) orientation of x relative to edge p→q
+        return (q[None, :, 0] - p[None, :, 0]) * (x[:, None, 1] - p[None, :, 1]) - \
+               (q[None, :, 1] - p[None, :, 1]) * (x[:, None, 0] - p[None, :, 0])
+
+    s1, s2, s3 = side(a, b, points), side(b, c, points), side(c, a, points)
+    inside = ((s1 > 0) & (s2 > 0) & (s3 > 0)) | ((s1 < 0) & (s2 < 0) & (s3 < 0))
+    return inside.sum(axis=1)
+
+
+def test_inverted_loops_zero_for_embeddings_mirrors_and_pieces():
+    V, F = grid(6, 6, keep=lambda i, j: not (2 <= i <= 3 and 2 <= j <= 3))  # a square with a square hole
+    uv = V[:, :2].copy()
+    assert len(boundary_loops(F)) == 2
+    assert M.inverted_loops(uv, F) == 0
+    assert covering_counts(uv, F, uv[F].mean(axis=1)).max() == 1
+    assert M.inverted_loops(uv * [-1.0, 1.0], F) == 0  # a mirrored map is one-to-one too
+    two = np.vstack([uv, uv + [10.0, 0.0]])  # two separate pieces, each with its hole
+    assert M.inverted_loops(two, np.vstack([F, F + len(uv)])) == 0
+    s = M.summary(V, F, uv)
+    assert s["inverted_loops"] == 0 and s["bijective"] is True
+
+
+def test_inverted_loops_find_a_hole_covered_twice():
+    """halftunnel's spectral conformal layout has 2 flipped faces; untangled with the border held, nothing is
+    flipped and no boundary crosses, yet one hole is turned inside out: part of the plane is covered twice (counted
+    here by brute force), which only the loops' orientation shows."""
+    from heatparam.formats import load_mesh
+    from heatparam.layout.conformal import conformal_layout
+    from heatparam.refine.energy import surface_gradients
+    from heatparam.refine.multilevel import untangle_flips
+    from heatparam.refine.start import bijectivity
+
+    from conftest import shared_mesh
+
+    V, F = load_mesh(shared_mesh("halftunnel.off"))
+    uv = conformal_layout(V, F)
+    g, _ = surface_gradients(V, F)
+    assert bijectivity(uv, F, g)[0] > 0
+    held = np.zeros(len(V), dtype=bool)
+    held[np.concatenate(boundary_loops(F))] = True
+    z, _ = untangle_flips(uv, V, F, g, held)
+    assert z is not None
+    cover = covering_counts(z, F, z[F].mean(axis=1))
+    assert cover.max() >= 2  # a face centroid inside two triangles: not one-to-one
+    s = M.summary(V, F, z)
+    assert s["flips"] == 0 and s["boundary_crossings"] == 0
+    assert s["inverted_loops"] == 1 and s["bijective"] is False
+    assert bijectivity(z, F, g) == (0, 1)  # not a start candidate

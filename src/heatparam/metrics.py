@@ -33,7 +33,8 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from heatparam.errors import MeshError
-from heatparam.mesh.topology import DEGENERATE_AREA_REL, boundary_edges
+from heatparam.mesh.planar import polygon_area, signed_areas
+from heatparam.mesh.topology import DEGENERATE_AREA_REL, boundary_edges, boundary_loops
 
 __all__ = [
     "PerFaceDistortion",
@@ -505,6 +506,49 @@ def boundary_crossings(uv: np.ndarray, F: np.ndarray) -> int:
     return segment_crossings(uv, boundary_edges(F))
 
 
+def inverted_loops(uv: np.ndarray, F: np.ndarray) -> int:
+    """Global overlap check of layouts with holes: boundary loops that wind the wrong way.
+
+    A layout with no flipped face and no boundary crossing can still cover part of the plane twice when it has
+    holes: a hole's loop turned inside out (traversed counter-clockwise, as the outer border is, when the faces are
+    counter-clockwise) has faces on its inside, so the region it encloses is covered twice (halftunnel upsampled
+    to 201k: its spectral conformal layout, 2 flipped faces untangled, turned a hole so). With every face of a
+    connected piece oriented alike and the loops simple and disjoint, the piece is one-to-one exactly when one of
+    its loops (the outer border) turns with its faces and every other against them: the covering number inside
+    the loops is the sum of their winding numbers. Counted: for every connected piece of F, the loops whose signed
+    area has the sign of the piece's total signed UV area, less one.
+
+    Parameters
+    ----------
+    uv : (n_uv, 2) float64
+    F : (m, 3) int64
+        Triangles indexing ``uv`` (as :func:`boundary_crossings`: pass welded ``Fuv`` for per-corner UVs).
+
+    Returns
+    -------
+    int
+        0 for a layout whose pieces each have one outer border and holes that wind as holes; meaningful when no
+        face is flipped and no boundary crosses (then 0 means the layout is one-to-one).
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    uv = _points(uv, 2, "uv")
+    F = _faces(F, len(uv), "F")
+    loops = [lp for lp in boundary_loops(F) if len(lp) >= 3]
+    if len(loops) <= 1:
+        return 0
+    n = len(uv)
+    adj = coo_matrix((np.ones(2 * len(F)), (F[:, [0, 1]].ravel(), F[:, [1, 2]].ravel())), shape=(n, n))
+    _, comp = connected_components(adj, directed=False)
+    sign = np.sign(np.bincount(comp[F[:, 0]], weights=signed_areas(uv, F), minlength=comp.max() + 1))
+    agree = np.zeros(len(sign), dtype=np.int64)
+    for lp in loops:
+        c = comp[lp[0]]
+        agree[c] += polygon_area(uv[lp]) * sign[c] > 0
+    return int(np.maximum(agree - 1, 0).sum())
+
+
 # ----------------------------------------------------------------------------------------------------------
 # stress and summary
 # ----------------------------------------------------------------------------------------------------------
@@ -559,8 +603,9 @@ def summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray | None
     -------
     dict
         Everything :func:`distortion` returns (``flips`` included), plus ``boundary_crossings`` (on the UV
-        boundary; with ``Fuv`` the corners are welded first by :func:`weld_uv`) and ``bijective``
-        (``flips == 0 and boundary_crossings == 0``; a globally mirrored map can be bijective).
+        boundary; with ``Fuv`` the corners are welded first by :func:`weld_uv`), ``inverted_loops``
+        (:func:`inverted_loops`: holes turned inside out) and ``bijective`` (``flips == 0``, no boundary crossing
+        and no inverted loop; a globally mirrored map can be bijective).
         Infinite values (``*_max`` with flips) are Python ``inf``: ``json.dumps`` writes them as ``Infinity``.
     """
     out = distortion(V, F, uv, Fuv)
@@ -571,5 +616,6 @@ def summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray | None
         uv_b, F_b = weld_uv(F, uv, Fuv)
     crossings = boundary_crossings(uv_b, F_b)
     out["boundary_crossings"] = int(crossings)
-    out["bijective"] = bool(out["flips"] == 0 and crossings == 0)
+    out["inverted_loops"] = inverted_loops(uv_b, F_b)
+    out["bijective"] = bool(out["flips"] == 0 and crossings == 0 and out["inverted_loops"] == 0)
     return out

@@ -110,9 +110,11 @@ def envelope(parameters: dict, method: dict, mesh_facts: dict, summary: dict, ti
              ) -> dict:
     """A report's top level, the same for one flattening and an atlas: version, parameters, method, mesh facts,
     metrics, timings, peak memory, machine, and the warnings (a last one when the map is not bijective)."""
-    if summary["flips"] or summary["boundary_crossings"]:
+    if summary["flips"] or summary["boundary_crossings"] or summary.get("inverted_loops"):
         warnings = [*warnings, f"the map is not bijective: {summary['flips']} flipped triangles, "
-                               f"{summary['boundary_crossings']} boundary crossings"]
+                               f"{summary['boundary_crossings']} boundary crossings"
+                               + (f", {summary['inverted_loops']} holes turned inside out (covered twice)"
+                                  if summary.get("inverted_loops") else "")]
     return {
         "heatparam_version": __version__,
         "parameters": parameters,

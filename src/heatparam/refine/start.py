@@ -1,7 +1,7 @@
 """The refinement's start: the bijective one of the MDS and conformal layouts with the lower energy, else Tutte.
 
-Every candidate is judged once, here: flipped faces, boundary crossings, energy (1 = isometry). An MDS layout with
-a few flipped faces is repaired first (:func:`repaired_layout`).
+Every candidate is judged once, here: flipped faces, boundary crossings and holes turned inside out, energy (1 =
+isometry). An MDS layout with a few flipped faces is repaired first (:func:`repaired_layout`).
 """
 
 from __future__ import annotations
@@ -21,9 +21,13 @@ from heatparam.refine.multilevel import repair_flips
 
 
 def bijectivity(uv: np.ndarray, F: np.ndarray, g: np.ndarray) -> tuple[int, int]:
-    """(flipped faces, boundary crossings) of a layout; crossings are only counted when nothing is flipped."""
+    """(flipped faces, crossings) of a layout: crossings are the boundary crossings plus the holes turned inside out
+    (``metrics.inverted_loops``: halftunnel's conformal layout, its 2 flipped faces untangled, covers one hole
+    twice), only counted when nothing is flipped (else -1). Bijective when both are 0."""
     flips = int((det(jacobians(uv, F, g)) <= 0).sum())
-    return flips, (int(metrics.boundary_crossings(uv, F)) if flips == 0 else -1)
+    if flips:
+        return flips, -1
+    return 0, int(metrics.boundary_crossings(uv, F)) + metrics.inverted_loops(uv, F)
 
 #: An MDS layout with a few flipped faces (at most this fraction, and at least 1) is repaired before it competes as a
 #: start: ``repair_flips`` with the boundary locked, accepted only when the result is bijective. A cylinder patch of
@@ -47,6 +51,9 @@ def repaired_layout(x: np.ndarray, F: np.ndarray, g: np.ndarray, loops: list[np.
         return None, {"flips": flips, "repaired": False, "reason": f"flips remain after {rounds} rounds"}
     if metrics.boundary_crossings(z, F):
         return None, {"flips": flips, "repaired": False, "reason": "the boundary crosses itself"}
+    if metrics.inverted_loops(z, F):
+        return None, {"flips": flips, "repaired": False,
+                      "reason": "a hole is turned inside out (the layout covers it twice)"}
     return z, {"flips": flips, "repaired": True, "rounds": rounds}
 
 class LscmStart(NamedTuple):
