@@ -63,6 +63,35 @@ def test_pardiso_refactor_reuses_the_analysis_while_the_pattern_fits():
     assert np.allclose(A3 @ f4.solve(b), b, atol=1e-9)
 
 
+def _grid_laplacian(k: int) -> sp.csc_matrix:
+    """The SPD 5-point Laplacian (+ identity) of a k×k grid, rows numbered row by row."""
+    L1 = sp.diags([-np.ones(k - 1), 2.0 * np.ones(k), -np.ones(k - 1)], [-1, 0, 1])
+    return (sp.kronsum(L1, L1) + sp.identity(k * k)).tocsc()
+
+
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="pypardiso not installed")
+def test_pardiso_new_analysis_reuses_the_ordering_unless_it_fills_in_too_much():
+    rng = np.random.default_rng(3)
+    A = _grid_laplacian(40)
+    n = A.shape[0]
+    b = rng.standard_normal(n)
+    f = Factor(A, "pardiso")
+    perm, fill = f.ordering
+    assert sorted(perm.tolist()) == list(range(1, n + 1)) and fill > n  # METIS's permutation (1-based), its fill
+    near = sp.coo_matrix(([-0.1, -0.1, 0.2, 0.2], ([0, 41, 0, 41], [41, 0, 0, 41])), shape=A.shape)
+    A2 = A + near  # one new coupling between neighbours: a new analysis, with the same permutation
+    f2 = f.refactor(A2)
+    assert f2 is not f and f2.ordering[0] is perm and f2.ordering[1] == fill
+    assert np.allclose(A2 @ f2.solve(b), b, atol=1e-9)
+    # a pattern the permutation does not suit (the grid renumbered at random): METIS orders it anew
+    p = rng.permutation(n)
+    B = (A[p][:, p] + 5.0 * sp.identity(n)).tocsc()
+    f3 = Factor(B, "pardiso", ordering=(perm, fill))
+    assert f3.ordering[0] is not perm
+    assert f3.ordering[1] <= solvers.REORDER_FILL * Factor(B, "pardiso").ordering[1]
+    assert np.allclose(B @ f3.solve(b), b, atol=1e-9)
+
+
 @pytest.mark.parametrize("backend", ["cholespy", "scipy"])
 def test_refactor_with_other_backends_is_a_new_factorization(backend):
     if backend not in available_backends():
@@ -74,3 +103,17 @@ def test_refactor_with_other_backends_is_a_new_factorization(backend):
     f2 = f.refactor(A2)
     assert f2 is not f and f2.backend == backend
     assert np.allclose(A2 @ f2.solve(b), b, atol=1e-9) and np.allclose(A @ f.solve(b), b, atol=1e-9)
+
+
+@pytest.mark.parametrize("backend", ["scipy", "pardiso"])
+def test_solve_unsymmetric(backend):
+    if backend not in available_backends():
+        pytest.skip(f"{backend} not installed")
+    rng = np.random.default_rng(4)
+    A = _spd(seed=5).tolil()
+    A[3, 7] += 0.5  # no longer symmetric
+    A = A.tocsc()
+    b = rng.standard_normal((A.shape[0], 2))
+    x = solvers.solve_unsymmetric(A, b, backend)
+    assert x.shape == b.shape and np.allclose(A @ x, b, atol=1e-9)
+    assert np.allclose(solvers.solve_unsymmetric(A, b[:, 0], backend), x[:, 0], atol=1e-9)

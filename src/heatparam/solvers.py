@@ -53,9 +53,13 @@ class Factor:
 
     upper : A is given as its upper triangle, sorted CSR (what PARDISO reads; only with the ``pardiso`` backend):
         it is used as it is, without a ``triu`` copy of a full matrix.
+    ordering : PARDISO only: (fill-reducing permutation (n,), its factor's nonzeros) of an earlier analysis of a
+        similar pattern, used instead of a new METIS ordering unless its factor has more than ``REORDER_FILL`` ×
+        those nonzeros (:meth:`refactor`).
     """
 
-    def __init__(self, A: sp.spmatrix, backend: str = "auto", upper: bool = False):
+    def __init__(self, A: sp.spmatrix, backend: str = "auto", upper: bool = False,
+                 ordering: tuple[np.ndarray, int] | None = None):
         if backend == "auto":
             backend = available_backends()[0]
         if backend not in available_backends():
@@ -80,12 +84,29 @@ class Factor:
             import pypardiso
 
             self._T = A if upper else _upper(A)  # PARDISO reads the upper triangle of a symmetric matrix
-            self._f = pypardiso.PyPardisoSolver(mtype=2)  # real symmetric positive definite
-            _remember_mkl(self._f)
-            self._f.factorize(self._T)
-            # MKL's defaults add 2 steps of iterative refinement to every solve (3x the work: 0.53 vs 0.19 s for 16
-            # columns on camelhead↑180k's heat matrix); a Cholesky of an SPD matrix needs none (residual 1e-15)
-            self._f.set_iparm(8, 0)
+            self._f = self._pardiso(pypardiso, ordering)
+            if ordering is not None and self._f.iparm[17] > REORDER_FILL * ordering[1]:
+                self._f.free_memory(everything=True)  # the old ordering fills in too much here: a new one
+                self._f = self._pardiso(pypardiso, None)
+            # the permutation and its fill, for refactor(); the fill of the METIS ordering it came from
+            self.ordering = (self._f.perm, ordering[1] if ordering is not None and self._f.perm is ordering[0]
+                             else int(self._f.iparm[17]))
+
+    def _pardiso(self, pypardiso, ordering: tuple[np.ndarray, int] | None):
+        """A PARDISO solver that has factorized ``self._T``: with METIS's ordering, returned in its ``perm``
+        (iparm 5 = 2), or with ``ordering``'s permutation (iparm 5 = 1)."""
+        f = pypardiso.PyPardisoSolver(mtype=2)  # real symmetric positive definite
+        _remember_mkl(f)
+        f.iparm[:] = _pardiso_defaults(pypardiso)
+        # MKL's defaults add 2 steps of iterative refinement to every solve (3x the work: 0.53 vs 0.19 s for 16
+        # columns on camelhead↑180k's heat matrix); a Cholesky of an SPD matrix needs none (residual 1e-15)
+        f.iparm[7] = 0
+        if ordering is None:
+            f.perm, f.iparm[4] = np.zeros(self.n, dtype=np.int32), 2
+        else:
+            f.perm, f.iparm[4] = ordering[0], 1
+        f.factorize(self._T)
+        return f
 
     def refactor(self, A: sp.spmatrix, upper: bool = False) -> Factor:
         """A factorization of A (same size as this one's matrix; ``upper`` as for :class:`Factor`), reusing what
@@ -98,14 +119,17 @@ class Factor:
         variants settles after a couple of calls. (The polish's scaffold is re-triangulated at every iteration and
         its long edges across holes and the outer band change, so there nearly every call is analysed anew:
         beetle's cut mesh 26 of 26, 2026-12-02; padding the pattern with each boundary vertex's 16 nearest
-        boundary vertices did not change that.) Other backends: a new :class:`Factor`.
+        boundary vertices did not change that.) The new analysis then reuses this one's fill-reducing permutation
+        (only the scaffold's couplings differ): camelhead↑180k's Hessian (363k unknowns) analysed in 0.50-0.67 s
+        instead of 0.84-1.19 s with METIS, the same factor size (BENCHMARKS.md §15). Other backends: a new
+        :class:`Factor`.
         """
         if self.backend == "pardiso" and A.shape == self._T.shape:
             T = on_union(self._T, A if upper else _upper(A))
             if T.nnz == self._T.nnz and _pardiso_numeric(self._f, T):
                 self._T = T
                 return self
-            return Factor(T, self.backend, upper=True)
+            return Factor(T, self.backend, upper=True, ordering=self.ordering)
         return Factor(A, self.backend, upper=upper)
 
     def rebuild_matrix(self) -> sp.spmatrix | None:
@@ -142,6 +166,49 @@ class Factor:
                 self._f.free_memory(everything=True)
             except Exception:  # noqa: BLE001 - interpreter shutdown: nothing left to free into
                 pass
+
+
+def solve_unsymmetric(A: sp.spmatrix, b: np.ndarray, backend: str = "auto") -> np.ndarray:
+    """x with A x = b for a square non-symmetric A (n,n), b (n,) or (n,k), factorized once and freed: PARDISO's LU
+    for systems of ≥ ``PARDISO_MIN_UNKNOWNS`` unknowns where it is installed (:func:`large_system_backend`), else
+    SuperLU. (pypardiso's own ``spsolve`` keeps its factor, and a copy of A, until the next call: 200 MB at 201k
+    unknowns.)"""
+    b = np.ascontiguousarray(b, dtype=np.float64)
+    if large_system_backend(A.shape[0], backend) != "pardiso":
+        return spla.splu(sp.csc_matrix(A)).solve(b)
+    prepare_mkl()
+    import pypardiso
+
+    f = pypardiso.PyPardisoSolver(mtype=11)  # real non-symmetric
+    _remember_mkl(f)
+    try:
+        return f.solve(sp.csr_matrix(A), b).reshape(b.shape)
+    finally:
+        f.free_memory(everything=True)
+
+
+#: A reused fill-reducing permutation is dropped for a new METIS ordering when its factor has more than this many
+#: times the nonzeros of the factor the permutation was made for (:meth:`Factor.refactor`).
+REORDER_FILL = 1.25
+
+_DEFAULT_IPARM: np.ndarray | None = None
+
+
+def _pardiso_defaults(pypardiso) -> np.ndarray:
+    """PARDISO's default iparm for a real SPD matrix (64,) int32, with iparm 1 = 1 (explicit values): what PARDISO
+    fills in on a first call with iparm 1 = 0, read once from an analysis of a 2×2 identity. Explicit values are
+    needed to ask for (iparm 5 = 2) or give (iparm 5 = 1) the fill-reducing permutation."""
+    global _DEFAULT_IPARM
+    if _DEFAULT_IPARM is None:
+        probe = pypardiso.PyPardisoSolver(mtype=2)
+        _remember_mkl(probe)
+        probe.set_phase(11)
+        probe._call_pardiso(sp.identity(2, format="csr"), np.zeros(2))
+        iparm = probe.iparm.copy()
+        probe.free_memory(everything=True)
+        iparm[17] = -1  # report the factor's nonzeros (iparm 18) at every analysis
+        _DEFAULT_IPARM = iparm
+    return _DEFAULT_IPARM
 
 
 def _upper(A: sp.spmatrix) -> sp.csr_matrix:

@@ -125,15 +125,6 @@ def test_scaffold_covers_box_minus_surface():
         set(map(tuple, np.sort(np.concatenate([sc.F[:, [0, 1]], sc.F[:, [1, 2]], sc.F[:, [2, 0]]]), axis=1).tolist()))
 
 
-def test_tutte_on_disk_with_holes_is_flip_free():
-    s = datasets.cylinder_with_holes()
-    disk = tutte.build_disk(s.V, s.F)
-    assert len(disk.holes) >= 1
-    uv = tutte.tutte(s.V, disk)
-    g, _ = energy.surface_gradients(s.V, s.F)
-    assert (np.linalg.det(energy.jacobians(uv[: len(s.V)], s.F, g)) > 0).all()
-
-
 def test_refine_none_returns_raw_mds():
     s = datasets.cylinder_patch()
     _, rep = pipeline.parameterize(s.V, s.F, fill="none", refine="none")

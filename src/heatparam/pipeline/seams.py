@@ -36,7 +36,8 @@ class Cut(NamedTuple):
 class SeamResult(NamedTuple):
     """The seams stage's value: the flattening to keep (finished; the one without seams when not cut), the cut
     (None when not cut), the report's ``seams`` part, warnings, and the flattening without seams as the stage
-    left it (``uncut``: the kept one when not cut; when cut, possibly paused, as its report says)."""
+    left it (``uncut``: the kept one when not cut; when cut, possibly paused, as its report says, and reduced to
+    its map, metrics and report)."""
 
     flat: Flat
     cut: Cut | None
@@ -101,13 +102,16 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat,
         better, flat, cut = _decide(flat, cut)
     else:
         better = True
+    paused = [name for name, f, kept in (("without", flat, not better), ("with", cut, better))
+              if f.resume is not None and not kept]
+    # the map not kept is left where it is: its polish state (and heat-stage layout) freed before the kept map is
+    # finished (halftunnel upsampled to 201k: the peak is in that finishing polish)
     if better:
-        cut = _finished(cut)
+        flat, cut = _left(flat), _finished(cut)
     else:
-        flat = _finished(flat)
+        cut, flat = _left(cut), _finished(flat)
     iso, iso_s = flat.summary["iso_mean"], cut.summary["iso_mean"]
     rep.update(iso_mean_without=iso, iso_mean_with=iso_s, bijective_with=cut.summary["bijective"])
-    paused = [name for name, f in (("without", flat), ("with", cut)) if f.resume is not None]
     if paused:
         rep["paused"] = {"maps": paused, "pause_excess": SEAM_PAUSE_EXCESS, "floor": SEAM_PAUSE_FLOOR,
                          "note": ("the iso mean of these maps was read where their polish paused; the decision "
@@ -141,6 +145,11 @@ def _reopened_conformal(cut_surface: Surface, source: np.ndarray) -> tuple[np.nd
     if not np.isfinite(uv).all():
         return None, {"reason": "the conformal layout has non-finite coordinates"}
     return reopen_crossing_slits(uv, cut_surface.F, source)
+
+
+def _left(f: Flat) -> Flat:
+    """``f`` as the map the seams stage does not keep: its map, metrics and report only."""
+    return f._replace(layout=None, fill_surface=None, resume=None)
 
 
 def _finished(f: Flat) -> Flat:

@@ -4,8 +4,9 @@ Classical MDS minimizes strain (Eq. 13), not the stress of Eq. 1, and folds on s
 turns a layout into a bijective map at true scale:
 
 1. **Start** (``start``): of the MDS layout and the conformal layout (spectral, no pins) scaled to the 3D area, the
-   bijective one (no flipped triangle, no boundary crossing) with the lower energy; if neither is bijective, Tutte's
-   embedding of the mesh with every hole closed by a fan (``layout.tutte``), bijective by Tutte's theorem.
+   bijective one (no flipped triangle, no boundary crossing, no hole turned inside out) with the lower energy; if
+   neither is bijective, Tutte's embedding (mean value weights) of the mesh with every hole closed by a fan
+   (``layout.tutte``), bijective by Tutte's theorem.
 2. **Polish** (``newton``): symmetric Dirichlet energy Σ A_f (|J|² + |J⁻¹|²) (``energy``), minimized by projected
    Newton with the closed-form Hessian eigensystem of Smith et al. 2019, coarse-to-fine on large meshes
    (``multilevel``).
@@ -150,7 +151,9 @@ class Refinement:
         x = self.x
         report["flips"] = int((det(jacobians(x, self.F, self.g)) <= 0).sum())
         report["boundary_crossings"] = int(metrics.boundary_crossings(x, self.F))
-        report["bijective"] = report["flips"] == 0 and report["boundary_crossings"] == 0
+        report["inverted_loops"] = metrics.inverted_loops(x, self.F)
+        report["bijective"] = (report["flips"] == 0 and report["boundary_crossings"] == 0
+                               and report["inverted_loops"] == 0)
         report["seconds"] = round(self.seconds + time.perf_counter() - t0, 3)
         return report
 

@@ -9,6 +9,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from heatparam import metrics
+from heatparam.layout.tutte import mean_value_laplacian
 from heatparam.mesh.planar import make_ccw, triangulate
 from heatparam.mesh.topology import face_areas
 from heatparam.refine.energy import det, jacobians, normalized_energy, surface_gradients
@@ -33,7 +34,10 @@ MULTILEVEL_MIN_EXCESS = 1e-2  # coarse-to-fine only when the start's energy exce
 #: seams, from Tutte, stalled at the barrier at 25.7 from 26.0 (probably because its coarse triangles, made in the
 #: Tutte disk, where the two sides of a seam lie far apart, join points that coincide in 3D), and its prolongation
 #: took 92 fine Newton iterations (118 s; 159 s end to end); dropped: 40 from Tutte (57 s; 101 s), to a lower
-#: energy (1.000714 vs 1.000723)
+#: energy (1.000714 vs 1.000723). The start is the layout this level was given (the coarse mesh's energy there),
+#: not where its polish began after a coarser level of its own: halftunnel upsampled to 201k from Tutte's layout
+#: (energy 23.7 on the 33k level) had its 11k level converge to 1.278 and the 33k level stall at 1.276 from 1.281
+#: — a far better start than 23.6, dropped when the gain was measured from 1.281 (stop 20)
 COARSE_MIN_GAIN = 0.5
 #: A coarse level whose polish stopped because its scaffold could not be built (two boundaries touch after the
 #: last step, within round-off) is dropped whatever its energy: halftunnel upsampled to 201k, its map without seams
@@ -86,24 +90,6 @@ def prolongate(uv: np.ndarray, uvc0: np.ndarray, T: np.ndarray, uvc: np.ndarray)
     l2 = (e1[:, 0] * p[:, 1] - e1[:, 1] * p[:, 0]) / den
     l0 = 1.0 - l1 - l2
     return l0[:, None] * uvc[T[face, 0]] + l1[:, None] * uvc[T[face, 1]] + l2[:, None] * uvc[T[face, 2]]
-
-def mean_value_laplacian(X: np.ndarray, F: np.ndarray) -> sp.csr_matrix:
-    """Floater's mean value Laplacian D − W of the triangles F over points ``X`` (n,2) or (n,3):
-    w_ij = (tan(α/2) + tan(β/2)) / |X_i − X_j| with α, β the angles at i beside edge ij. Positive weights (so a
-    convex boundary gives a flip-free interpolant); in the plane they reproduce affine maps of ``X`` exactly."""
-    n = len(X)
-    rows, cols, vals = [], [], []
-    for c in range(3):
-        i, j, k = F[:, c], F[:, (c + 1) % 3], F[:, (c + 2) % 3]
-        eij, eik = X[j] - X[i], X[k] - X[i]
-        lij, lik = np.linalg.norm(eij, axis=1), np.linalg.norm(eik, axis=1)
-        cos = np.clip((eij * eik).sum(axis=1) / (lij * lik), -1.0, 1.0)
-        t = np.tan(0.5 * np.arccos(cos))
-        rows += [i, i]
-        cols += [j, k]
-        vals += [t / lij, t / lik]
-    W = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
-    return (sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
 
 def repair_flips(x: np.ndarray, ref: np.ndarray, F: np.ndarray, g: np.ndarray, locked: np.ndarray
                  ) -> tuple[np.ndarray | None, int, int]:
@@ -196,6 +182,7 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
     except ValueError as exc:
         return None, info | {"used": False, "reason": str(exc)}
     gc, ac = surface_gradients(V[ids], T)
+    e0 = normalized_energy(x[ids], T, gc, ac)  # this level's start, before any coarser level of its own
     cloops = loop_ranges(loops)  # the coarse mesh's boundary loops: its first vertices, in loop order
     locked = np.zeros(n, dtype=bool)
     locked[ids[:nb]] = True  # the boundary is the coarse one: polished, bijective, kept as is
@@ -207,7 +194,7 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
                                   guards=local[ears], label=f"coarse, {len(ids)} vertices")
     xc, cinfo = crun.x, crun.report()
     info.update(coarse_polish=cinfo, coarse_multilevel=cml, guards=int(len(ears)))
-    e0, e1 = cinfo["energy_start"], cinfo["energy_end"]
+    e1 = cinfo["energy_end"]
     if cinfo["stop"].startswith("scaffold failed"):  # module constant COARSE_MIN_GAIN's note
         return None, info | {"used": False, "seconds": round(time.perf_counter() - t0, 3),
                              "reason": ("the coarse polish stopped where its boundaries touch (its scaffold "

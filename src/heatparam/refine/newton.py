@@ -333,7 +333,8 @@ class Polish:
         with them held while the seams stage flattened the cut mesh); :meth:`_unpark` rebuilds both exactly."""
         if self.fac is not None:
             kept = self.fac.rebuild_matrix()
-            self._parked = (self.fac.backend, self._H_last if kept is None else kept)
+            self._parked = (self.fac.backend, self._H_last if kept is None else kept,
+                            getattr(self.fac, "ordering", None))
             self.fac = None
         self.pat = None
 
@@ -341,9 +342,9 @@ class Polish:
         """What the iterations need: the Hessian's pattern (built once, and again after a pause) and, after a
         pause, the factorization :meth:`_park` freed."""
         if self._parked is not None:
-            backend, A = self._parked
-            # the same matrix: the same factor (PARDISO's is the analysed upper triangle)
-            self.fac, self._parked = Factor(A, backend, upper=backend == "pardiso"), None
+            backend, A, ordering = self._parked
+            # the same matrix and ordering: the same factor (PARDISO's is the analysed upper triangle)
+            self.fac, self._parked = Factor(A, backend, upper=backend == "pardiso", ordering=ordering), None
         if self.pat is None and self.max_iters > 0:
             self.pat = HessianPattern(self.F, len(self.x), upper=self.backend == "pardiso")
 
