@@ -114,22 +114,24 @@ class Factor:
 
         PARDISO keeps its symbolic analysis (the fill-reducing ordering: 0.67 s of the 1.3 s factorization of the
         363k-unknown camelhead↑180k Hessian) and refactorizes this object in place when A's sparsity pattern lies
-        within the analysed one (A's values are placed on that pattern, explicit zeros elsewhere). Otherwise the
-        new factor is analysed on the union of both patterns, so that a pattern which alternates between a few
-        variants settles after a couple of calls. (The polish's scaffold is re-triangulated at every iteration and
-        its long edges across holes and the outer band change, so there nearly every call is analysed anew:
-        beetle's cut mesh 26 of 26, 2026-12-02; padding the pattern with each boundary vertex's 16 nearest
-        boundary vertices did not change that.) The new analysis then reuses this one's fill-reducing permutation
-        (only the scaffold's couplings differ): camelhead↑180k's Hessian (363k unknowns) analysed in 0.50-0.67 s
-        instead of 0.84-1.19 s with METIS, the same factor size (BENCHMARKS.md §15). Other backends: a new
-        :class:`Factor`.
+        within the analysed one (A's values are placed on that pattern, explicit zeros elsewhere). Otherwise A's
+        own pattern is analysed anew, with this factor's fill-reducing permutation (the polish's scaffold is
+        re-triangulated at every iteration and its long edges across holes and the outer band change, so there
+        nearly every call is analysed anew: beetle's cut mesh 26 of 26, 2026-12-02; only the scaffold's couplings
+        differ, so the permutation still suits): camelhead↑180k's Hessian (363k unknowns) analysed in 0.50-0.67 s
+        instead of 0.84-1.19 s with METIS, the same factor size. Until stop 20 the new pattern was the union of
+        both, so that alternating patterns would settle; they did not, and the union's factor grew with every
+        iteration (beetle upsampled to 311k, cut mesh: 30.0M nonzeros for one pattern, 50.9-56.3M for the unions:
+        slower factorizations and the peak memory; BENCHMARKS.md §15). Other backends: a new :class:`Factor`.
         """
         if self.backend == "pardiso" and A.shape == self._T.shape:
-            T = on_union(self._T, A if upper else _upper(A))
+            U = A if upper else _upper(A)
+            T = on_union(self._T, U)
             if T.nnz == self._T.nnz and _pardiso_numeric(self._f, T):
                 self._T = T
                 return self
-            return Factor(T, self.backend, upper=True, ordering=self.ordering)
+            del T
+            return Factor(U, self.backend, upper=True, ordering=self.ordering)
         return Factor(A, self.backend, upper=upper)
 
     def rebuild_matrix(self) -> sp.spmatrix | None:
