@@ -120,9 +120,10 @@ class Factor:
         nearly every call is analysed anew: beetle's cut mesh 26 of 26, 2026-12-02; only the scaffold's couplings
         differ, so the permutation still suits): camelhead↑180k's Hessian (363k unknowns) analysed in 0.50-0.67 s
         instead of 0.84-1.19 s with METIS, the same factor size. Until stop 20 the new pattern was the union of
-        both, so that alternating patterns would settle; they did not, and the union's factor grew with every
-        iteration (beetle upsampled to 311k, cut mesh: 30.0M nonzeros for one pattern, 50.9-56.3M for the unions:
-        slower factorizations and the peak memory; BENCHMARKS.md §15). Other backends: a new :class:`Factor`.
+        both, so that alternating patterns would settle; they did not, and the union only added nonzeros (beetle
+        upsampled to 311k, the cut mesh's fine level: factors of 54.5-56.3M nonzeros on the unions, 53.2-55.4M on
+        each pattern alone; in-process 141.8 → 128.1 s and peak 2417 → 2289 MB, one run each; BENCHMARKS.md §15).
+        Other backends: a new :class:`Factor`.
         """
         if self.backend == "pardiso" and A.shape == self._T.shape:
             U = A if upper else _upper(A)
