@@ -12,9 +12,14 @@ import sys
 
 def main(argv: list[str] | None = None) -> int:
     """The process entry point (it may end the process: use ``heatparam.cli.main`` in-process)."""
-    from heatparam import interrupt
+    try:
+        from heatparam import interrupt  # its `import signal` builds enums: a Ctrl-C can land in there
 
-    interrupt.install()
+        interrupt.install()
+    except KeyboardInterrupt:  # before the handler is in, Python's own raises KeyboardInterrupt (CI, loaded machine)
+        print("heatparam: interrupted (no output written)", file=sys.stderr)
+        sys.stderr.flush()
+        os._exit(130)
     try:
         cli = interrupt.guarded_import("heatparam.cli")
         code = cli.main(argv)
