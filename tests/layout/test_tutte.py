@@ -53,3 +53,14 @@ def test_unknown_weights_are_refused():
     s = datasets.flat_square()
     with pytest.raises(ValueError, match="weights"):
         tutte.tutte(s.V, tutte.build_disk(s.V, s.F), weights="cotan")
+
+
+def test_a_failing_mean_value_solve_falls_back_to_uniform(monkeypatch):
+    s = datasets.cylinder_with_holes()
+    disk = tutte.build_disk(s.V, s.F)
+
+    def fail(*args, **kwargs):
+        raise ArithmeticError("singular")  # neither PARDISO's nor SuperLU's own error: any failure
+
+    monkeypatch.setattr(tutte, "solve_unsymmetric", fail)
+    assert np.array_equal(tutte.tutte(s.V, disk), tutte.tutte(s.V, disk, weights="uniform"))

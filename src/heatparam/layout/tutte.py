@@ -101,7 +101,7 @@ def tutte(V: np.ndarray, disk: Disk, backend: str = "auto", weights: str = "mean
             Lff = L[free][:, free].tocsc()
             try:
                 uv[free] = solve_unsymmetric(Lff, -(L[free][:, b] @ bc), backend)
-            except RuntimeError:  # singular in floating point: uniform weights
+            except Exception:  # noqa: BLE001 - singular in floating point (SuperLU, PARDISO): uniform weights
                 return tutte(V, disk, backend, "uniform")
             if np.isfinite(uv).all() and (signed_areas(uv, F[: disk.m]) > 0).all():
                 return uv
