@@ -68,6 +68,7 @@ class Factor:
             raise ValueError(f"an upper-triangle matrix needs the pardiso backend, not {backend!r}")
         self.backend = backend
         self.n = A.shape[0]
+        self.ordering: tuple[np.ndarray, int] | None = None  # PARDISO's, for refactor() (set below)
         if backend == "cholespy":
             import cholespy
 

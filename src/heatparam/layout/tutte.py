@@ -75,6 +75,22 @@ def _uniform_laplacian(F: np.ndarray, N: int) -> sp.csr_matrix:
     return (sp.diags(np.asarray(A.sum(axis=1)).ravel()) - A).tocsr()
 
 
+def _mean_value_interior(V: np.ndarray, disk: Disk, uv: np.ndarray, free: np.ndarray, backend: str) -> bool:
+    """Place the ``free`` vertices of ``uv`` (n + holes, 2; the outer loop already on its circle) as mean value
+    weighted means of their neighbours; False (``uv[free]`` then undefined) when the weights are not finite, the
+    solve fails or a surface face is not counter-clockwise in floating point."""
+    X = np.vstack([V[: disk.n], *[V[h].mean(axis=0, keepdims=True) for h in disk.holes]])
+    L = mean_value_laplacian(X, disk.F)
+    if not np.isfinite(L.data).all():
+        return False
+    b = disk.outer
+    try:
+        uv[free] = solve_unsymmetric(L[free][:, free].tocsc(), -(L[free][:, b] @ uv[b]), backend)
+    except Exception:  # noqa: BLE001 - singular in floating point (SuperLU, PARDISO): the caller uses uniform weights
+        return False
+    return bool(np.isfinite(uv).all() and (signed_areas(uv, disk.F[: disk.m]) > 0).all())
+
+
 def tutte(V: np.ndarray, disk: Disk, backend: str = "auto", weights: str = "mean_value") -> np.ndarray:
     """Tutte's embedding of the disk (surface + fans; the fan centres at their holes' centroids), the outer loop on
     a circle of its 3D perimeter (arc-length spaced), every other vertex the ``weights``-weighted mean of its
@@ -94,18 +110,8 @@ def tutte(V: np.ndarray, disk: Disk, backend: str = "auto", weights: str = "mean
     uv[b] = bc
     if not len(free):  # a strip whose every vertex is on the border has none: the circle alone is the embedding
         return uv
-    if weights == "mean_value":
-        X = np.vstack([V[: disk.n], *[V[h].mean(axis=0, keepdims=True) for h in disk.holes]])
-        L = mean_value_laplacian(X, F)
-        if np.isfinite(L.data).all():
-            Lff = L[free][:, free].tocsc()
-            try:
-                uv[free] = solve_unsymmetric(Lff, -(L[free][:, b] @ bc), backend)
-            except Exception:  # noqa: BLE001 - singular in floating point (SuperLU, PARDISO): uniform weights
-                return tutte(V, disk, backend, "uniform")
-            if np.isfinite(uv).all() and (signed_areas(uv, F[: disk.m]) > 0).all():
-                return uv
-        return tutte(V, disk, backend, "uniform")
+    if weights == "mean_value" and _mean_value_interior(V, disk, uv, free, backend):
+        return uv
     L = _uniform_laplacian(F, N)
     Lff = L[free][:, free].tocsc()
     uv[free] = Factor(Lff, backend).solve(-(L[free][:, b] @ bc))

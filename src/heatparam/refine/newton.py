@@ -333,8 +333,7 @@ class Polish:
         with them held while the seams stage flattened the cut mesh); :meth:`_unpark` rebuilds both exactly."""
         if self.fac is not None:
             kept = self.fac.rebuild_matrix()
-            self._parked = (self.fac.backend, self._H_last if kept is None else kept,
-                            getattr(self.fac, "ordering", None))
+            self._parked = (self.fac.backend, self._H_last if kept is None else kept, self.fac.ordering)
             self.fac = None
         self.pat = None
 
