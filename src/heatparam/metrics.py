@@ -34,7 +34,7 @@ import numpy as np
 
 from heatparam.errors import MeshError
 from heatparam.mesh.planar import polygon_area, signed_areas
-from heatparam.mesh.topology import DEGENERATE_AREA_REL, boundary_edges, boundary_loops
+from heatparam.mesh.topology import DEGENERATE_AREA_REL, boundary_edges, boundary_loops, unique_ints
 
 __all__ = [
     "PerFaceDistortion",
@@ -337,14 +337,6 @@ def weld_uv(F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray) -> tuple[np.ndarray,
 # ----------------------------------------------------------------------------------------------------------
 # boundary self-intersections
 # ----------------------------------------------------------------------------------------------------------
-def _unique_int(x: np.ndarray) -> np.ndarray:
-    """Sorted unique values (sort-based; faster than the hash path of ``np.unique`` on large int arrays)."""
-    x = np.sort(x)
-    keep = np.ones(len(x), dtype=bool)
-    keep[1:] = x[1:] != x[:-1]
-    return x[keep]
-
-
 def _orient(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
 
@@ -418,7 +410,7 @@ def _candidate_pairs(A: np.ndarray, B: np.ndarray, ids: np.ndarray, h: float, de
     edges = ids[rows[:, 0]]
     dense = counts > _CELL_MAX
     if dense.any() and depth < _MAX_DEPTH:
-        sub = _unique_int(rows[np.repeat(dense, counts), 0])
+        sub = unique_ints(rows[np.repeat(dense, counts), 0])
         h_sub = h / _REFINE
         span = np.abs(Bl[sub] - Al[sub]).sum() / h_sub + 2 * len(sub)
         if span <= _MAX_ENTRIES:
@@ -456,7 +448,7 @@ def crossing_pairs(P: np.ndarray, E: np.ndarray) -> np.ndarray:
         return none
     i = np.minimum(cand[:, 0], cand[:, 1])
     j = np.maximum(cand[:, 0], cand[:, 1])
-    key = _unique_int(i[i != j] * ne + j[i != j])
+    key = unique_ints(i[i != j] * ne + j[i != j])
     i, j = key // ne, key % ne
     ei, ej = E[i], E[j]
     share = (ei[:, :1] == ej).any(axis=1) | (ei[:, 1:] == ej).any(axis=1)

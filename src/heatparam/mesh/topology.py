@@ -16,6 +16,15 @@ import scipy.sparse as sp
 DEGENERATE_AREA_REL = 1e-14
 
 
+def unique_ints(x: np.ndarray) -> np.ndarray:
+    """Sorted unique values of an integer array (a sort and a mask). NumPy 2.4's ``np.unique`` takes a hash path
+    that is 20-60× slower on millions of distinct keys (3M int64: 3.3 s vs 0.06 s for the sort, 2026-12-03)."""
+    x = np.sort(x, axis=None)
+    keep = np.ones(len(x), dtype=bool)
+    keep[1:] = x[1:] != x[:-1]
+    return x[keep]
+
+
 def face_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Triangle areas, (m,) float64."""
     return 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)

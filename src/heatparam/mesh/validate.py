@@ -14,7 +14,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from heatparam.errors import MeshError, TopologyError
-from heatparam.mesh.topology import DEGENERATE_AREA_REL, face_areas, loop_length, loops_outer_first
+from heatparam.mesh.topology import DEGENERATE_AREA_REL, face_areas, loop_length, loops_outer_first, unique_ints
 
 #: Outer border length² / area below which a surface counts as nearly closed. A flat disk has 4π ≈ 12.6, a
 #: hemisphere 2π ≈ 6.3, the strongly curved camelhead.off 1.0, stanford-bunny.obj (a sphere with 5 small holes) 0.23.
@@ -189,7 +189,7 @@ def check_vertex_fans(F: np.ndarray, edges: Edges) -> None:
     direction, checked by :func:`check_edges`) from corner c2 of f2 to (c2+1)%3: so the edge's first end sits at
     corners c1 of f1 and (c2+1)%3 of f2, its second end at (c1+1)%3 of f1 and c2 of f2.
     """
-    m, n = edges.m, len(np.unique(F))
+    m, n = edges.m, len(unique_ints(F))
     h1, h2 = edges.interior_pairs
     f1, c1 = h1 % m, h1 // m
     f2, c2 = h2 % m, h2 // m
@@ -197,7 +197,7 @@ def check_vertex_fans(F: np.ndarray, edges: Edges) -> None:
     c = np.concatenate([3 * f2 + (c2 + 1) % 3, 3 * f2 + c2])
     graph = sp.csr_matrix((np.ones(len(r)), (r, c)), shape=(3 * m, 3 * m))
     _, comp = connected_components(graph, directed=False)
-    fans = np.unique(F.ravel() * (3 * m) + comp)  # distinct (vertex, corner group) pairs
+    fans = unique_ints(F.ravel() * (3 * m) + comp)  # distinct (vertex, corner group) pairs
     fans_per_vertex = np.bincount(fans // (3 * m), minlength=n)
     nonman_v = fans_per_vertex > 1
     if nonman_v.any():

@@ -34,6 +34,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from heatparam.mesh.topology import unique_ints
 from heatparam.refine.energy import hat_gradients, jacobians, max_step, scatter, sd_newton_blocks, symmetric_dirichlet
 from heatparam.refine.scaffold import (
     SCAFFOLD_ADAPT,
@@ -70,48 +71,63 @@ class HessianPattern:
         m = len(F)
         ci, cj = np.divmod(np.arange(9), 3)
         R, C = F[:, ci].ravel(), F[:, cj].ravel()  # (9m,) row and column vertex of corner pair (i, j)
-        A = sp.csc_matrix((np.ones(9 * m), (R, C)), shape=(n, n))
-        A.sum_duplicates()  # also sorts each column's rows
-        ptr, rows = A.indptr.astype(np.int64), A.indices.astype(np.int64)
+        key = unique_ints(R * n + C)  # A's pattern as sorted row-major keys u*n + v, once each
+        rows = key // n
+        ptr = np.searchsorted(rows, np.arange(n + 1))
         deg = np.diff(ptr)
+        self.shape = (2 * n, 2 * n)
+        self.upper = upper
+        if upper:
+            self._upper(F, n, R, C, key, rows, ptr, deg)
+            return
+        # A is symmetric: column v's rows are row v's columns, so key % n lists each column's rows, sorted
+        col, rows = rows, key % n
         nnz = len(rows)
-        col = np.repeat(np.arange(n, dtype=np.int64), deg)
-        local = np.searchsorted(col * n + rows, C.astype(np.int64) * n + R) - ptr[C]  # place of (R, C) in column C
-        del A, R
+        local = np.searchsorted(key, C * n + R) - ptr[C]  # place of (R, C) in column C
+        del R
         # full CSC layout: column b*n + v starts at b*2nnz + 2 ptr[v]; rows a*n + u sit at a*deg[v] + local
         half = np.empty(2 * nnz, dtype=np.int64)
         at = 2 * ptr[col] + (np.arange(nnz) - ptr[col])
         half[at] = rows
         half[at + deg[col]] = rows + n
-        indices = np.concatenate([half, half])
-        indptr = np.concatenate([2 * ptr[:-1], 2 * nnz + 2 * ptr])
-        self.shape = (2 * n, 2 * n)
-        self.upper = upper
+        self.indices = np.concatenate([half, half]).astype(np.int32)
+        self.indptr = np.concatenate([2 * ptr[:-1], 2 * nnz + 2 * ptr]).astype(np.int32)
+        self.nnz = 4 * nnz
         base = (2 * ptr[C] + local).reshape(m, 3, 3)  # (f, i, j): offset of pair (F[f,i], F[f,j]) in a half
         degC = deg[C].reshape(m, 3, 3)
-        del C, local, at, half, col
         inv = np.empty((m, 2, 3, 2, 3), dtype=np.int64)  # block entry (a*3+i, b*3+j), as sd_newton_blocks
         for a in range(2):
             for b in range(2):
                 inv[:, a, :, b, :] = b * 2 * nnz + base + a * degC
-        if not upper:
-            self.indices, self.indptr, self.nnz = indices.astype(np.int32), indptr.astype(np.int32), 4 * nnz
-            self.inv = inv.reshape(m, 36)
-            return
-        # the full matrix's slot k holds entry (indices[k], column of k); the upper entries, row-major, are its
-        # rows' upper parts (the pattern is symmetric), so each upper slot is found by one sorted search
-        N = 2 * n
-        kcol = np.repeat(np.arange(N, dtype=np.int64), np.diff(indptr))
-        up = indices <= kcol
-        key = indices[up] * N + kcol[up]  # row-major keys of the upper entries, in the full matrix's order
-        order = np.argsort(key, kind="stable")
-        slot = np.full(len(indices), len(key), dtype=np.int64)  # lower entries: one past the end, discarded
-        slot[np.flatnonzero(up)[order]] = np.arange(len(key))
-        skey = key[order]
-        self.indices = (skey % N).astype(np.int32)
-        self.indptr = np.searchsorted(skey // N, np.arange(N + 1)).astype(np.int32)
-        self.nnz = len(key)
-        self.inv = slot[inv.reshape(m, 36)].astype(np.int32)
+        self.inv = inv.reshape(m, 36)
+
+    def _upper(self, F, n, R, C, key, rows, ptr, deg) -> None:
+        """The upper triangle's sorted CSR pattern and face-entry map, straight from A's rows: row u (x block)
+        holds the columns v ≥ u of A's row u, then n + v for all of them; row n + u the columns n + v, v ≥ u."""
+        m = len(F)
+        lo = np.searchsorted(key, np.arange(n) * (n + 1)) - ptr[:-1]  # place of the diagonal in each row
+        up = deg - lo
+        self.indptr = np.concatenate([[0], np.cumsum(np.concatenate([up + deg, up]))]).astype(np.int32)
+        self.nnz = nnz = int(self.indptr[-1])
+        s0, s1 = self.indptr[:n].astype(np.int64), self.indptr[n:2 * n].astype(np.int64)
+        cols = key % n
+        pos = np.arange(len(key)) - ptr[rows]  # place of each pair in its row
+        isup = pos >= lo[rows]
+        ru, off = rows[isup], pos[isup] - lo[rows[isup]]
+        indices = np.empty(nnz, dtype=np.int32)
+        indices[s0[ru] + off] = cols[isup]
+        indices[s0[rows] + up[rows] + pos] = cols + n
+        indices[s1[ru] + off] = cols[isup] + n
+        self.indices = indices
+        # face entry (a, i, b, j) = (row a*n + F[f,i], column b*n + F[f,j]); lower entries to the slot past the end
+        loc = np.searchsorted(key, R * n + C) - ptr[R]  # place of C in row R
+        off = loc - lo[R]
+        inv = np.empty((m, 2, 3, 2, 3), dtype=np.int32)  # block entry (a*3+i, b*3+j), as sd_newton_blocks
+        inv[:, 0, :, 0, :] = np.where(off >= 0, s0[R] + off, nnz).reshape(m, 3, 3)
+        inv[:, 0, :, 1, :] = (s0[R] + up[R] + loc).reshape(m, 3, 3)
+        inv[:, 1, :, 0, :] = nnz
+        inv[:, 1, :, 1, :] = np.where(off >= 0, s1[R] + off, nnz).reshape(m, 3, 3)
+        self.inv = inv.reshape(m, 36)
 
     @property
     def slots(self) -> int:
