@@ -49,12 +49,15 @@ SEAM_MIN_GAIN = 0.02
 #: 1.013, flattened the cut mesh for nothing; 29 s of 75 s on a 191k-vertex one, BENCHMARKS.md §12d.)
 SEAM_TRY_EXCESS = 1.0 / (1.0 - SEAM_MIN_GAIN) - 1.0
 #: ``seams auto`` decides on paused polishes: each of the two flattenings (without and with seams) pauses once a
-#: Newton iteration gains less than this fraction of the energy's excess over an isometry ...
+#: Newton iteration gains less than this fraction of the energy's excess over an isometry (the map without seams
+#: at its coarse levels too, ``pipeline.seams.seam_pause``) ...
 SEAM_PAUSE_EXCESS = 0.03
 #: ... and the decision is taken there when it holds for any finished iso mean between this fraction of the paused
-#: map's excess (iso mean - 1) and all of it (the polish lowers it; measured, BENCHMARKS.md §11c); otherwise both
-#: are finished first. Only the kept map is finished: the same map, the same iterations as without pausing.
-SEAM_PAUSE_FLOOR = 0.5
+#: map's excess (iso mean - 1) and all of it (the polish lowers it); otherwise both are finished first. Only the
+#: kept map is finished: the same map, the same iterations as without pausing. Finished excess / paused excess
+#: measured 0.908-1.000 on 12 maps, 0.913 and 0.952 where the coarse level paused (BENCHMARKS.md §11c, §16); 0.5
+#: until stop 21, which left beetle↑311k undecided by 0.0006 of iso mean and finished its dropped map (20 s)
+SEAM_PAUSE_FLOOR = 0.75
 #: Default of ``refine_multilevel``: meshes this large polish coarse-to-fine (docs/refine.md).
 MULTILEVEL_MIN_VERTICES = 30_000
 #: Largest vertex count for which ``geodesics auto`` takes the all-pairs path (n×n distances).

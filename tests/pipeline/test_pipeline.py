@@ -341,6 +341,30 @@ def test_seams_decided_on_paused_polishes_keep_the_map(case, halftunnel, halftun
         assert paused.report["method"]["refine"]["polish"][key] == full.report["method"]["refine"]["polish"][key]
 
 
+def test_seams_decided_where_the_uncut_coarse_level_paused(halftunnel, monkeypatch):
+    """Coarse-to-fine (forced on halftunnel: 400-vertex threshold, ~250-vertex coarse mesh), the map without seams
+    pauses at its coarse level too (``seams.seam_pause``; its map there is far above ``pause_coarse``) and the
+    decision is taken on the provisional fine map from it: the kept cut map is bit for bit the one decided on
+    finished polishes, and the dropped one was never finished."""
+    from heatparam.pipeline import seams
+    from heatparam.refine import multilevel
+
+    V, F = halftunnel
+    monkeypatch.setattr(multilevel, "COARSE_MIN", 250)
+    paused = parameterize(V, F, refine_multilevel=400)
+    monkeypatch.setattr(seams, "SEAM_PAUSE_EXCESS", 0.0)  # both trials polished to the end
+    full = parameterize(V, F, refine_multilevel=400)
+    assert np.array_equal(paused.uv, full.uv) and np.array_equal(paused.Fuv, full.Fuv)
+    assert paused.report["metrics"] == full.report["metrics"]
+    sp = paused.report["method"]["seams"]
+    assert sp["used"] and sp["paused"]["maps"] == ["without"]
+    ml = paused.report["method"]["without_seams"]["refine"]["multilevel"]
+    ml_full = full.report["method"]["without_seams"]["refine"]["multilevel"]
+    assert ml["coarse_polish"]["stop"] == "paused" and ml_full["coarse_polish"]["stop"] != "paused"
+    assert ml["coarse_polish"]["iterations"] < ml_full["coarse_polish"]["iterations"]
+    assert sp["iso_mean_without"] >= full.report["method"]["seams"]["iso_mean_without"]
+
+
 def test_seams_deterministic(halftunnel, halftunnel_maps):
     V, F = halftunnel
     again = parameterize(V, F)

@@ -432,11 +432,59 @@ def test_coarse_to_fine_on_a_surface_with_holes_is_bijective():
     disk = tutte.build_disk(s.V, s.F)
     loops = [disk.outer, *disk.holes]
     x0 = conformal_layout(s.V, s.F)
-    y, info = multilevel.coarse_to_fine(s.V, s.F, x0, loops, g, min_vertices=0, max_iters=200, tol=1e-6,
-                                    backend="auto")
+    y, info, _ = multilevel.coarse_to_fine(s.V, s.F, x0, loops, g, min_vertices=0, max_iters=200, tol=1e-6,
+                                           backend="auto")
     assert info["used"] and y is not None, info
     assert info["coarse_vertices"] < len(s.V) and info["coarse_polish"]["converged"]
     assert start.bijectivity(y, s.F, g) == (0, 0)
+
+
+@pytest.fixture(scope="module")
+def cap_from_tutte():
+    s = datasets.curved_cap_with_holes(sphere_radius=1.2, h=0.02)
+    disk = tutte.build_disk(s.V, s.F)
+    g, area = energy.surface_gradients(s.V, s.F)
+    return s, g, area, [disk.outer, *disk.holes], tutte.tutte(s.V, disk)[: len(s.V)]
+
+
+def test_multilevel_paused_at_its_coarse_level_finishes_as_if_never_paused(cap_from_tutte, monkeypatch):
+    """``multilevel_polish(pause_excess, pause_coarse)``: the coarse polish pauses (an iteration gains < 3% of its
+    excess), the fine polish goes on from its prolongation (a provisional, bijective map, reported as paused);
+    finishing drops that, finishes the coarse level and polishes the fine level again: the very layout and report of
+    a multilevel polish that never paused."""
+    s, g, area, loops, x0 = cap_from_tutte
+    monkeypatch.setattr(multilevel, "COARSE_MIN", 1500)  # 6863 vertices, 466 on the boundary
+    kw = dict(min_vertices=len(s.V), max_iters=200, tol=1e-6, backend="auto")
+    ref, ml_ref = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
+    run, ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, pause_excess=0.03, pause_coarse=1.0, **kw)
+    assert isinstance(run, multilevel.Levels) and not run.done and run.report()["stop"] == "paused"
+    assert start.bijectivity(run.x, s.F, g) == (0, 0)
+    coarse_its, fine_its = ml["coarse_polish"]["iterations"], run.fine.it
+    assert ml["coarse_polish"]["stop"] == "paused" and coarse_its < ml_ref["coarse_polish"]["iterations"]
+    assert not run.run(pause_excess=0.03) and run.fine.it > fine_its  # a pause asked again: the provisional map
+    fine_its = run.fine.it
+    assert run.run() and run.done
+    assert np.array_equal(run.x, ref.x)
+    assert ml["provisional"] == {"coarse_iterations": coarse_its, "fine_iterations": fine_its}
+    for key in ("coarse_vertices", "prolongation_flips", "repair_rounds", "fine_tol", "used"):
+        assert ml[key] == ml_ref[key], key
+    for key in ("iterations", "converged", "stop", "energy_end"):
+        assert ml["coarse_polish"][key] == ml_ref["coarse_polish"][key], key
+        assert run.report()[key] == ref.report()[key], key
+
+
+def test_multilevel_coarse_level_not_kept_paused_below_pause_coarse(cap_from_tutte, monkeypatch):
+    """A paused coarse level whose map's iso mean is not above ``pause_coarse`` is finished at once: a plain
+    :class:`newton.Polish` comes back, the layout of an unpaused multilevel polish."""
+    s, g, area, loops, x0 = cap_from_tutte
+    monkeypatch.setattr(multilevel, "COARSE_MIN", 1500)  # 6863 vertices, 466 on the boundary
+    kw = dict(min_vertices=len(s.V), max_iters=200, tol=1e-6, backend="auto")
+    ref, _ = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
+    run, ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, pause_excess=0.03, pause_coarse=100.0,
+                                           **kw)
+    assert isinstance(run, newton.Polish) and "provisional" not in ml and ml["coarse_polish"]["stop"] != "paused"
+    run.run()
+    assert run.done and np.array_equal(run.x, ref.x)
 
 
 def test_coarse_to_fine_drops_a_coarse_level_that_stalls_far_from_its_minimum():
@@ -451,7 +499,7 @@ def test_coarse_to_fine_drops_a_coarse_level_that_stalls_far_from_its_minimum():
     disk = tutte.build_disk(Vs, Fs)
     g, _ = energy.surface_gradients(Vs, Fs)
     x0 = tutte.tutte(Vs, disk)[: len(Vs)]
-    y, info = multilevel.coarse_to_fine(Vs, Fs, x0, disk.loops, g, min_vertices=0, max_iters=200, tol=1e-6,
+    y, info, _ = multilevel.coarse_to_fine(Vs, Fs, x0, disk.loops, g, min_vertices=0, max_iters=200, tol=1e-6,
                                         backend="auto")
     cp = info["coarse_polish"]
     assert y is None and not info["used"] and "coarse polish stopped" in info["reason"], info
@@ -470,7 +518,7 @@ def test_coarse_to_fine_untangles_what_the_mean_value_repair_cannot(monkeypatch)
     calls = []
     real = multilevel.repair_flips
     monkeypatch.setattr(multilevel, "repair_flips", lambda *a: calls.append(real(*a)) or calls[-1])
-    y, info = multilevel.coarse_to_fine(V, F, x0, loops, g, min_vertices=0, max_iters=200, tol=1e-6,
+    y, info, _ = multilevel.coarse_to_fine(V, F, x0, loops, g, min_vertices=0, max_iters=200, tol=1e-6,
                                         backend="auto")
     assert [c[0] is None for c in calls] == [True, True]  # both mean value repairs failed
     assert info["used"] and y is not None, info
@@ -662,7 +710,7 @@ def test_coarse_to_fine_drops_a_coarse_level_whose_scaffold_failed(monkeypatch):
 
     monkeypatch.setattr(newton, "build_scaffold", failing)
     monkeypatch.setattr(multilevel, "prolongate", lambda *a: pytest.fail("prolongated a dropped level"))
-    y, info = multilevel.coarse_to_fine(V, F, x0, disk.loops, g, min_vertices=0, max_iters=200, tol=1e-6,
+    y, info, _ = multilevel.coarse_to_fine(V, F, x0, disk.loops, g, min_vertices=0, max_iters=200, tol=1e-6,
                                         backend="auto")
     assert y is None and not info["used"] and "boundaries touch" in info["reason"], info
     assert info["coarse_polish"]["stop"].startswith("scaffold failed")

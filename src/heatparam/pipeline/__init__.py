@@ -95,7 +95,8 @@ def _disk(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress) -> Result
         surface, comp, info = Surface.validated(V, F)
     _check_memory(len(V), len(F), opts)
     check_time_step(opts.time_step, info.diameter * surface.frame.unit)
-    sr = seams_stage(surface, opts, prog, flatten(surface, opts, prog, pause_excess=seam_pause(surface, opts)),
+    pause, coarse = seam_pause(surface, opts)
+    sr = seams_stage(surface, opts, prog, flatten(surface, opts, prog, pause_excess=pause, pause_coarse=coarse),
                      flatten)
     flat = sr.uncut  # finished when kept; possibly paused when the cut map won (seams_stage)
     if surface.frame.exponent:  # back to model units (exact: × a power of two)
@@ -141,11 +142,14 @@ def _check_memory(n: int, m: int, opts: Options) -> None:
 
 
 def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = False,
-            starts: dict[str, np.ndarray] | None = None, pause_excess: float = 0.0) -> Flat:
+            starts: dict[str, np.ndarray] | None = None, pause_excess: float = 0.0, pause_coarse: float = 0.0
+            ) -> Flat:
     """The stages on one surface (``seamed``: cut open by the seams stage, whose seams a fill would close again;
     ``starts``: further named start layouts (n,2) for the refinement, e.g. the uncut map with its slits opened;
     ``pause_excess`` > 0: the polish may pause once an iteration gains less than that fraction of the energy's
-    excess over an isometry, and the Flat's ``resume`` finishes it: the seams stage decides on paused maps).
+    excess over an isometry, and the Flat's ``resume`` finishes it: the seams stage decides on paused maps;
+    ``pause_coarse`` > 0: its coarse levels may pause too while their iso mean exceeds it,
+    ``refine.multilevel.Levels``).
     """
     from heatparam.refine import Refinement, RefineParams
 
@@ -158,7 +162,7 @@ def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = Fals
             {"used": False, "reason": fill_reason}
         with prog.stage("refine"):
             rf = Refinement(surface.V, surface.F, None, params, prog, surface.conformal, check.lscm,
-                            surface.gradients(), starts, pause_excess)
+                            surface.gradients(), starts, pause_excess, pause_coarse)
         return _refined(surface, opts, prog, rf, None, check.skipped, fill, None, [])
     m = mds_map(surface, opts, prog, fill_used, fill_reason)
     if opts.refine == "none":
@@ -167,7 +171,7 @@ def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = Fals
         return Flat(m.uv, summary, method, m.layout, m.fill_surface, m.warnings)
     with prog.stage("refine"):
         rf = Refinement(surface.V, surface.F, m.uv, params, prog, surface.conformal, check.lscm,
-                        surface.gradients(), starts, pause_excess)
+                        surface.gradients(), starts, pause_excess, pause_coarse)
     return _refined(surface, opts, prog, rf, m.layout, None, m.fill, m.fill_surface, m.warnings)
 
 

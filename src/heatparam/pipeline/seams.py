@@ -46,12 +46,21 @@ class SeamResult(NamedTuple):
     uncut: Flat
 
 
-def seam_pause(surface: Surface, opts) -> float:
-    """The ``pause_excess`` of the two trial flattenings of ``surface`` (without and with seams):
-    ``SEAM_PAUSE_EXCESS`` when ``seams auto`` may try the cut-open mesh (holes, a refined map), so that a trial the
-    map will not keep is not polished to the end; else 0 (``holes`` keeps the cut map, ``none`` tries nothing)."""
+def seam_pause(surface: Surface, opts) -> tuple[float, float]:
+    """How the two trial flattenings of ``surface`` (without and with seams) may pause: (``pause_excess``,
+    ``pause_coarse`` of the map without seams).
+
+    ``pause_excess`` is ``SEAM_PAUSE_EXCESS`` when ``seams auto`` may try the cut-open mesh (holes, a refined map),
+    so that a trial the map will not keep is not polished to the end; else 0 (``holes`` keeps the cut map, ``none``
+    tries nothing). The map without seams may also pause at its coarse levels while their iso mean exceeds
+    ``pause_coarse``: the value above which the cut is tried for any finished map (:func:`_surely_tried`), where
+    the map without seams was kept on no mesh measured (BENCHMARKS.md §16: beetle upsampled to 311k polished its
+    coarse level 66 Newton iterations for a map it dropped). The cut map pauses at its fine level only: it is
+    usually kept, and finishing a paused coarse level drops the fine iterations made from it."""
     auto = opts.seams == "auto" and opts.refine != "none" and surface.info.n_holes > 0
-    return SEAM_PAUSE_EXCESS if auto else 0.0
+    if not auto:
+        return 0.0, 0.0
+    return SEAM_PAUSE_EXCESS, 1.0 + SEAM_TRY_EXCESS / SEAM_PAUSE_FLOOR
 
 
 def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat,
@@ -97,7 +106,7 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat,
             x, rep["uncut_start"] = open_slits(flat.uv[src], Fs, src)
         if x is not None:
             starts["uncut"] = x
-    cut = flatten(cut_surface, opts, prog, True, starts or None, seam_pause(surface, opts))
+    cut = flatten(cut_surface, opts, prog, True, starts or None, seam_pause(surface, opts)[0])
     if opts.seams == "auto":
         better, flat, cut = _decide(flat, cut)
     else:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -156,7 +157,8 @@ def boundary_faces(F: np.ndarray, boundary: np.ndarray) -> np.ndarray:
 
 def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.ndarray], g: np.ndarray,
                    *, min_vertices: int, max_iters: int, tol: float, backend: str, progress=None,
-                   guards: np.ndarray | None = None) -> tuple[np.ndarray | None, dict]:
+                   guards: np.ndarray | None = None, pause_excess: float = 0.0, pause_coarse: float = 0.0
+                   ) -> tuple[np.ndarray | None, dict, Callable[[], tuple[np.ndarray | None, dict]] | None]:
     """A start for the fine polish from a coarse one: :func:`coarse_vertices` and :func:`coarse_mesh` in the
     bijective layout ``x`` (n,2), :func:`multilevel_polish` of the coarse mesh from ``x`` (itself coarse-to-fine
     while a level has >= ``min_vertices`` vertices), :func:`prolongate`, :func:`repair_flips`.
@@ -165,7 +167,13 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
     boundary vertices (a corner "ear" of the scan; plenty in the coarse levels' own triangulations) could come out
     of the coarse polish flipped, beyond repair, unless the coarse polish keeps it positive: such triangles of this
     level (and its own ``guards`` (k,3)) are passed down as guards, triangles without energy that the line search
-    keeps positive. Returns (layout (n,2) or None when no bijective one came out, report).
+    keeps positive.
+
+    ``pause_excess`` > 0 and ``pause_coarse`` > 0: the coarse polish may pause as :class:`newton.Polish` does, and
+    while its map's iso mean (``metrics.distortion``) exceeds ``pause_coarse`` its layout is prolongated there (a
+    provisional start; otherwise it is finished at once); the third value then finishes the coarse polish and
+    prolongates again, giving what an unpaused call returns. Returns (layout (n,2) or None when no bijective one
+    came out, report, that finisher or None when no coarse polish is left paused).
     """
     t0 = time.perf_counter()
     n = len(V)
@@ -174,13 +182,13 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
     nb = sum(len(lp) for lp in loops)
     info: dict = {"coarse_vertices": int(len(ids)), "boundary_vertices": int(nb)}
     if nb > target // 2:
-        return None, info | {"used": False, "reason": "the boundary alone has more than half the coarse vertices"}
+        return None, info | {"used": False, "reason": "the boundary alone has more than half the coarse vertices"}, None
     if len(ids) >= n:
-        return None, info | {"used": False, "reason": "the coarse mesh would not be coarser"}
+        return None, info | {"used": False, "reason": "the coarse mesh would not be coarser"}, None
     try:
         T = coarse_mesh(x, loops, ids)
     except ValueError as exc:
-        return None, info | {"used": False, "reason": str(exc)}
+        return None, info | {"used": False, "reason": str(exc)}, None
     gc, ac = surface_gradients(V[ids], T)
     e0 = normalized_energy(x[ids], T, gc, ac)  # this level's start, before any coarser level of its own
     cloops = loop_ranges(loops)  # the coarse mesh's boundary loops: its first vertices, in loop order
@@ -191,71 +199,148 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
     ears = boundary_faces(F if guards is None else np.vstack([F, guards]), locked)
     crun, cml = multilevel_polish(V[ids], T, x[ids], cloops, gc, ac, min_vertices=min_vertices,
                                   max_iters=max_iters, tol=tol, backend=backend, progress=progress,
-                                  guards=local[ears], label=f"coarse, {len(ids)} vertices")
-    xc, cinfo = crun.x, crun.report()
-    info.update(coarse_polish=cinfo, coarse_multilevel=cml, guards=int(len(ears)))
-    e1 = cinfo["energy_end"]
-    if cinfo["stop"].startswith("scaffold failed"):  # module constant COARSE_MIN_GAIN's note
-        return None, info | {"used": False, "seconds": round(time.perf_counter() - t0, 3),
-                             "reason": ("the coarse polish stopped where its boundaries touch (its scaffold "
-                                        "failed): its prolongation would fold between them")}
-    if not cinfo["converged"] and e1 - 1.0 > COARSE_MIN_GAIN * (e0 - 1.0):
-        return None, info | {"used": False, "seconds": round(time.perf_counter() - t0, 3),
-                             "reason": (f"the coarse polish stopped ({cinfo['stop']}) at energy {e1:.4g} from "
-                                        f"{e0:.4g}: its prolongation would be a poor start")}
-    y = prolongate(x, x[ids], T, xc)
-    y[ids] = xc
-    z, flipped, rounds = repair_flips(y, x, F, g, locked)
-    info["repair_weights"] = "start layout"
-    if z is None:
-        # the start's weights fail where the start is far from an affine image of the result (LSCM's scale varies
-        # a lot across a repair region: camelhead↑727k's 111k-vertex level, 4 flips grew to 443); weights of the
-        # prolongated layout itself keep it wherever its stars are valid, and unfold the rest (1 round there)
-        z, _, rounds = repair_flips(y, y, F, g, locked)
-        info["repair_weights"] = "prolongated layout"
-    if z is None:
-        # flips beside a locked non-convex boundary, where mean value interpolation cannot help (a 50k-vertex
-        # halftunnel from Tutte: 18 left after 12 rounds of both): untangle their neighbourhoods
-        z, rounds = untangle_flips(y, V, F, g, locked)
-        info["repair_weights"] = "untangled (Garanzha et al. 2021)"
-    y = z
-    info.update(prolongation_flips=flipped, repair_rounds=rounds, seconds=round(time.perf_counter() - t0, 3))
-    if y is None:
-        return None, info | {"used": False, "reason": f"{flipped} prolongated faces still flipped after repair"}
-    if metrics.boundary_crossings(y, F):  # cannot happen with the coarse boundary kept; checked, not assumed
-        return None, info | {"used": False, "reason": "the prolongated boundary crosses itself"}
-    return y, info | {"used": True}
+                                  guards=local[ears], label=f"coarse, {len(ids)} vertices",
+                                  pause_excess=pause_excess if pause_coarse > 0 else 0.0, pause_coarse=pause_coarse)
+    info["guards"] = int(len(ears))
+
+    def prolongated(paused: bool) -> tuple[np.ndarray | None, dict]:
+        xc, cinfo = crun.x, crun.report()
+        out = info | {"coarse_polish": cinfo, "coarse_multilevel": cml}
+        e1 = cinfo["energy_end"]
+        if cinfo["stop"].startswith("scaffold failed"):  # module constant COARSE_MIN_GAIN's note
+            return None, out | {"used": False, "seconds": round(time.perf_counter() - t0, 3),
+                                "reason": ("the coarse polish stopped where its boundaries touch (its scaffold "
+                                           "failed): its prolongation would fold between them")}
+        if not paused and not cinfo["converged"] and e1 - 1.0 > COARSE_MIN_GAIN * (e0 - 1.0):
+            return None, out | {"used": False, "seconds": round(time.perf_counter() - t0, 3),
+                                "reason": (f"the coarse polish stopped ({cinfo['stop']}) at energy {e1:.4g} from "
+                                           f"{e0:.4g}: its prolongation would be a poor start")}
+        y = prolongate(x, x[ids], T, xc)
+        y[ids] = xc
+        z, flipped, rounds = repair_flips(y, x, F, g, locked)
+        out["repair_weights"] = "start layout"
+        if z is None:
+            # the start's weights fail where the start is far from an affine image of the result (LSCM's scale
+            # varies a lot across a repair region: camelhead↑727k's 111k-vertex level, 4 flips grew to 443); weights
+            # of the prolongated layout itself keep it wherever its stars are valid, and unfold the rest (1 round)
+            z, _, rounds = repair_flips(y, y, F, g, locked)
+            out["repair_weights"] = "prolongated layout"
+        if z is None:
+            # flips beside a locked non-convex boundary, where mean value interpolation cannot help (a 50k-vertex
+            # halftunnel from Tutte: 18 left after 12 rounds of both): untangle their neighbourhoods
+            z, rounds = untangle_flips(y, V, F, g, locked)
+            out["repair_weights"] = "untangled (Garanzha et al. 2021)"
+        y = z
+        out.update(prolongation_flips=flipped, repair_rounds=rounds, seconds=round(time.perf_counter() - t0, 3))
+        if y is None:
+            return None, out | {"used": False, "reason": f"{flipped} prolongated faces still flipped after repair"}
+        if metrics.boundary_crossings(y, F):  # cannot happen with the coarse boundary kept; checked, not assumed
+            return None, out | {"used": False, "reason": "the prolongated boundary crosses itself"}
+        return y, out | {"used": True}
+
+    def finish() -> tuple[np.ndarray | None, dict]:
+        run_polish(crun, progress, f"coarse, {len(ids)} vertices")
+        return prolongated(False)
+
+    if crun.done:
+        return *prolongated(False), None
+    if not metrics.distortion(V[ids], T, crun.x)["iso_mean"] > pause_coarse:
+        return *finish(), None
+    y, ml = prolongated(True)
+    if y is None:  # no provisional start from the paused level: finish it now, as without pausing
+        return *finish(), None
+    return y, ml, finish
+
 
 def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.ndarray], g: np.ndarray,
                       area: np.ndarray, *, min_vertices: int, max_iters: int, tol: float, backend: str,
                       progress=None, guards: np.ndarray | None = None, label: str = "Newton",
-                      pause_excess: float = 0.0) -> tuple[Polish, dict]:
+                      pause_excess: float = 0.0, pause_coarse: float = 0.0) -> tuple[Polish | Levels, dict]:
     """:func:`polish` of (V (n,3), F (m,3)) from the bijective layout ``x`` (n,2); coarse-to-fine
     (:func:`coarse_to_fine`) when the mesh has >= ``min_vertices`` (> 0) vertices and ``x`` is more than
     ``MULTILEVEL_MIN_EXCESS`` above an isometry. After a converged coarse level the polish stops at
     ``MULTILEVEL_FINE_TOL_FACTOR`` × ``tol``. ``pause_excess`` > 0: the fine polish pauses once an iteration gains
-    less than that fraction of the energy's excess (:class:`newton.Polish`; :func:`run_polish` goes on).
-    Returns (the fine level's :class:`newton.Polish`: its layout ``x`` (n,2) and ``report()``, coarse-to-fine
-    report)."""
+    less than that fraction of the energy's excess (:class:`newton.Polish`; :func:`run_polish` goes on), and with
+    ``pause_coarse`` > 0 so may the coarse levels while their maps' iso mean exceeds it (:func:`coarse_to_fine`,
+    :class:`Levels`).
+    Returns (the fine level's :class:`newton.Polish` or :class:`Levels`: its layout ``x`` (n,2) and ``report()``,
+    coarse-to-fine report; the report is updated in place when a paused coarse level is finished)."""
+    y, finish = None, None
     if not 0 < min_vertices <= len(V):
         ml: dict = {"used": False, "reason": "small mesh"}
     elif not normalized_energy(x, F, g, area) > 1.0 + MULTILEVEL_MIN_EXCESS:
         ml = {"used": False, "reason": "the start is already within 1% of an isometry"}
     else:
         try:
-            y, ml = coarse_to_fine(V, F, x, loops, g, min_vertices=min_vertices, max_iters=max_iters, tol=tol,
-                                   backend=backend, progress=progress, guards=guards)
+            y, ml, finish = coarse_to_fine(V, F, x, loops, g, min_vertices=min_vertices, max_iters=max_iters,
+                                           tol=tol, backend=backend, progress=progress, guards=guards,
+                                           pause_excess=pause_excess, pause_coarse=pause_coarse)
         except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:  # only a faster start: never fatal
-            y, ml = None, {"used": False, "reason": f"coarse level failed: {exc}"}
+            ml = {"used": False, "reason": f"coarse level failed: {exc}"}
+
+    def fine(y: np.ndarray | None) -> Polish:
+        ftol = tol
         if y is not None:
-            x = y
             if ml["coarse_polish"]["converged"]:
-                tol *= MULTILEVEL_FINE_TOL_FACTOR
-            ml["fine_tol"] = tol
-    # open-ended: Newton stops when converged (5-50 iterations measured), far below the cap
-    run = Polish(x, F, g, area, loops, max_iters=max_iters, tol=tol, backend=backend, guards=guards)
+                ftol *= MULTILEVEL_FINE_TOL_FACTOR
+            ml["fine_tol"] = ftol
+        # open-ended: Newton stops when converged (5-50 iterations measured), far below the cap
+        return Polish(x if y is None else y, F, g, area, loops, max_iters=max_iters, tol=ftol, backend=backend,
+                      guards=guards)
+
+    run: Polish | Levels = fine(y)
+    if finish is not None:
+        def finished() -> Polish:  # the coarse level finished and prolongated again; the report updated in place
+            y, again = finish()
+            provisional = {"coarse_iterations": ml["coarse_polish"]["iterations"], "fine_iterations": run.fine.it}
+            ml.clear()
+            ml.update(again, provisional=provisional)
+            return fine(y)
+
+        run = Levels(run, finished)
     run_polish(run, progress, label, pause_excess)
     return run, ml
+
+
+class Levels:
+    """A fine polish started from a coarse level that paused (:func:`multilevel_polish` with ``pause_excess`` and
+    ``pause_coarse``), with :class:`newton.Polish`'s interface (``x``, ``done``, ``run``, ``report``, ``bar``).
+
+    While pauses are asked for, the fine polish from the paused coarse layout goes on: a provisional map, which the
+    seams stage reads where it pauses. Finishing (``run()`` without a pause) first finishes the coarse level,
+    prolongates its end again and polishes the fine level from there: the very layout of a multilevel polish that
+    never paused (the provisional fine iterations are dropped; the report's ``multilevel.provisional`` counts
+    them). ``fine`` is the current fine :class:`newton.Polish`."""
+
+    def __init__(self, fine: Polish, finished: Callable[[], Polish]):
+        self.fine, self._finished, self.bar = fine, finished, None
+
+    @property
+    def x(self) -> np.ndarray:
+        return self.fine.x
+
+    @property
+    def done(self) -> bool:
+        return self._finished is None and self.fine.done
+
+    def run(self, pause_excess: float = 0.0) -> bool:
+        if self._finished is not None:
+            if pause_excess > 0.0 and self.fine.done:  # the provisional polish has stopped: nothing to go on with
+                return False
+            if pause_excess <= 0.0:
+                self.fine, self._finished = self._finished(), None
+        self.fine.bar = self.bar
+        try:
+            self.fine.run(pause_excess)
+        finally:
+            self.fine.bar = None
+        return self.done
+
+    def report(self) -> dict:
+        rep = self.fine.report()
+        if self._finished is not None:
+            rep["stop"] = "paused"
+        return rep
 
 
 def run_polish(run: Polish, progress=None, label: str = "Newton", pause_excess: float = 0.0) -> bool:
