@@ -202,17 +202,19 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
                                   guards=local[ears], label=f"coarse, {len(ids)} vertices",
                                   pause_excess=pause_excess if pause_coarse > 0 else 0.0, pause_coarse=pause_coarse)
     info["guards"] = int(len(ears))
+    idle = [0.0]  # seconds between this level's pause and its finish (other work): not this level's
 
     def prolongated(paused: bool) -> tuple[np.ndarray | None, dict]:
+        seconds = round(time.perf_counter() - t0 - idle[0], 3)
         xc, cinfo = crun.x, crun.report()
         out = info | {"coarse_polish": cinfo, "coarse_multilevel": cml}
         e1 = cinfo["energy_end"]
         if cinfo["stop"].startswith("scaffold failed"):  # module constant COARSE_MIN_GAIN's note
-            return None, out | {"used": False, "seconds": round(time.perf_counter() - t0, 3),
+            return None, out | {"used": False, "seconds": seconds,
                                 "reason": ("the coarse polish stopped where its boundaries touch (its scaffold "
                                            "failed): its prolongation would fold between them")}
         if not paused and not cinfo["converged"] and e1 - 1.0 > COARSE_MIN_GAIN * (e0 - 1.0):
-            return None, out | {"used": False, "seconds": round(time.perf_counter() - t0, 3),
+            return None, out | {"used": False, "seconds": seconds,
                                 "reason": (f"the coarse polish stopped ({cinfo['stop']}) at energy {e1:.4g} from "
                                            f"{e0:.4g}: its prolongation would be a poor start")}
         y = prolongate(x, x[ids], T, xc)
@@ -231,14 +233,17 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
             z, rounds = untangle_flips(y, V, F, g, locked)
             out["repair_weights"] = "untangled (Garanzha et al. 2021)"
         y = z
-        out.update(prolongation_flips=flipped, repair_rounds=rounds, seconds=round(time.perf_counter() - t0, 3))
+        out.update(prolongation_flips=flipped, repair_rounds=rounds,
+                   seconds=round(time.perf_counter() - t0 - idle[0], 3))
         if y is None:
             return None, out | {"used": False, "reason": f"{flipped} prolongated faces still flipped after repair"}
         if metrics.boundary_crossings(y, F):  # cannot happen with the coarse boundary kept; checked, not assumed
             return None, out | {"used": False, "reason": "the prolongated boundary crosses itself"}
         return y, out | {"used": True}
 
-    def finish() -> tuple[np.ndarray | None, dict]:
+    def finish(paused_at: float | None = None) -> tuple[np.ndarray | None, dict]:
+        if paused_at is not None:
+            idle[0] = time.perf_counter() - paused_at
         run_polish(crun, progress, f"coarse, {len(ids)} vertices")
         return prolongated(False)
 
@@ -249,7 +254,8 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
     y, ml = prolongated(True)
     if y is None:  # no provisional start from the paused level: finish it now, as without pausing
         return *finish(), None
-    return y, ml, finish
+    paused_at = time.perf_counter()
+    return y, ml, lambda: finish(paused_at)
 
 
 def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.ndarray], g: np.ndarray,
