@@ -500,7 +500,7 @@ def test_coarse_to_fine_drops_a_coarse_level_that_stalls_far_from_its_minimum():
     g, _ = energy.surface_gradients(Vs, Fs)
     x0 = tutte.tutte(Vs, disk)[: len(Vs)]
     y, info, _ = multilevel.coarse_to_fine(Vs, Fs, x0, disk.loops, g, min_vertices=0, max_iters=200, tol=1e-6,
-                                        backend="auto")
+                                           backend="auto")
     cp = info["coarse_polish"]
     assert y is None and not info["used"] and "coarse polish stopped" in info["reason"], info
     assert not cp["converged"] and cp["energy_end"] - 1 > multilevel.COARSE_MIN_GAIN * (cp["energy_start"] - 1)
@@ -519,7 +519,7 @@ def test_coarse_to_fine_untangles_what_the_mean_value_repair_cannot(monkeypatch)
     real = multilevel.repair_flips
     monkeypatch.setattr(multilevel, "repair_flips", lambda *a: calls.append(real(*a)) or calls[-1])
     y, info, _ = multilevel.coarse_to_fine(V, F, x0, loops, g, min_vertices=0, max_iters=200, tol=1e-6,
-                                        backend="auto")
+                                           backend="auto")
     assert [c[0] is None for c in calls] == [True, True]  # both mean value repairs failed
     assert info["used"] and y is not None, info
     assert info["repair_weights"].startswith("untangled") and info["prolongation_flips"] > 0
@@ -711,6 +711,6 @@ def test_coarse_to_fine_drops_a_coarse_level_whose_scaffold_failed(monkeypatch):
     monkeypatch.setattr(newton, "build_scaffold", failing)
     monkeypatch.setattr(multilevel, "prolongate", lambda *a: pytest.fail("prolongated a dropped level"))
     y, info, _ = multilevel.coarse_to_fine(V, F, x0, disk.loops, g, min_vertices=0, max_iters=200, tol=1e-6,
-                                        backend="auto")
+                                           backend="auto")
     assert y is None and not info["used"] and "boundaries touch" in info["reason"], info
     assert info["coarse_polish"]["stop"].startswith("scaffold failed")

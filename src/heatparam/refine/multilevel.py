@@ -202,10 +202,10 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
                                   guards=local[ears], label=f"coarse, {len(ids)} vertices",
                                   pause_excess=pause_excess if pause_coarse > 0 else 0.0, pause_coarse=pause_coarse)
     info["guards"] = int(len(ears))
-    idle = [0.0]  # seconds between this level's pause and its finish (other work): not this level's
 
-    def prolongated(paused: bool) -> tuple[np.ndarray | None, dict]:
-        seconds = round(time.perf_counter() - t0 - idle[0], 3)
+    def prolongated(paused: bool, idle: float = 0.0) -> tuple[np.ndarray | None, dict]:
+        """``idle``: seconds this level waited paused (other work), left out of its ``seconds``."""
+        seconds = round(time.perf_counter() - t0 - idle, 3)
         xc, cinfo = crun.x, crun.report()
         out = info | {"coarse_polish": cinfo, "coarse_multilevel": cml}
         e1 = cinfo["energy_end"]
@@ -234,7 +234,7 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
             out["repair_weights"] = "untangled (Garanzha et al. 2021)"
         y = z
         out.update(prolongation_flips=flipped, repair_rounds=rounds,
-                   seconds=round(time.perf_counter() - t0 - idle[0], 3))
+                   seconds=round(time.perf_counter() - t0 - idle, 3))
         if y is None:
             return None, out | {"used": False, "reason": f"{flipped} prolongated faces still flipped after repair"}
         if metrics.boundary_crossings(y, F):  # cannot happen with the coarse boundary kept; checked, not assumed
@@ -242,10 +242,9 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
         return y, out | {"used": True}
 
     def finish(paused_at: float | None = None) -> tuple[np.ndarray | None, dict]:
-        if paused_at is not None:
-            idle[0] = time.perf_counter() - paused_at
+        idle = 0.0 if paused_at is None else time.perf_counter() - paused_at
         run_polish(crun, progress, f"coarse, {len(ids)} vertices")
-        return prolongated(False)
+        return prolongated(False, idle)
 
     if crun.done:
         return *prolongated(False), None
@@ -296,11 +295,12 @@ def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[n
 
     run: Polish | Levels = fine(y)
     if finish is not None:
-        def finished() -> Polish:  # the coarse level finished and prolongated again; the report updated in place
+        def finished(provisional: Polish) -> Polish:
+            """The fine polish after the coarse level finished and prolongated again; the report updated in place."""
             y, again = finish()
-            provisional = {"coarse_iterations": ml["coarse_polish"]["iterations"], "fine_iterations": run.fine.it}
+            counts = {"coarse_iterations": ml["coarse_polish"]["iterations"], "fine_iterations": provisional.it}
             ml.clear()
-            ml.update(again, provisional=provisional)
+            ml.update(again, provisional=counts)
             return fine(y)
 
         run = Levels(run, finished)
@@ -318,7 +318,7 @@ class Levels:
     never paused (the provisional fine iterations are dropped; the report's ``multilevel.provisional`` counts
     them). ``fine`` is the current fine :class:`newton.Polish`."""
 
-    def __init__(self, fine: Polish, finished: Callable[[], Polish]):
+    def __init__(self, fine: Polish, finished: Callable[[Polish], Polish]):
         self.fine, self._finished, self.bar = fine, finished, None
 
     @property
@@ -331,10 +331,10 @@ class Levels:
 
     def run(self, pause_excess: float = 0.0) -> bool:
         if self._finished is not None:
-            if pause_excess > 0.0 and self.fine.done:  # the provisional polish has stopped: nothing to go on with
-                return False
             if pause_excess <= 0.0:
-                self.fine, self._finished = self._finished(), None
+                self.fine, self._finished = self._finished(self.fine), None
+            elif self.fine.done:  # the provisional polish has stopped: nothing to go on with
+                return False
         self.fine.bar = self.bar
         try:
             self.fine.run(pause_excess)
