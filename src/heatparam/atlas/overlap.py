@@ -14,6 +14,8 @@ from fractions import Fraction
 
 import numpy as np
 
+from heatparam.mesh.topology import unique_ints
+
 __all__ = ["overlapping_pairs", "count_overlaps", "uv_degenerate_faces"]
 
 _EPS = np.finfo(np.float64).eps
@@ -81,9 +83,9 @@ def _candidates(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     if not pairs:
         return np.zeros((0, 2), dtype=np.int64)
     P = np.concatenate(pairs)
-    P = np.sort(P, axis=1)
-    P = np.unique(P, axis=0)
-    a, b = P[:, 0], P[:, 1]
+    key = unique_ints(np.minimum(P[:, 0], P[:, 1]) * m + np.maximum(P[:, 0], P[:, 1]))
+    a, b = key // m, key % m
+    P = np.column_stack([a, b])
     keep = (lo[a] <= hi[b]).all(axis=1) & (lo[b] <= hi[a]).all(axis=1)
     return P[keep]
 

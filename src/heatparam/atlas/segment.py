@@ -30,6 +30,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 
 from heatparam.atlas.repair import half_edge_opposites
 from heatparam.errors import HeatparamError
+from heatparam.mesh.topology import unique_ints, unique_inverse
 
 __all__ = ["DEFAULT_CONE", "DEFAULT_CREASE", "Flattenings", "Segmentation", "Topology", "chart_iso", "chart_mesh",
            "flatten_charts", "proxy_bound", "quick_flatten", "segment"]
@@ -126,9 +127,10 @@ def chart_mesh(topo: Topology, faces: np.ndarray, glued: np.ndarray, group: np.n
     r = np.concatenate([3 * a + j, 3 * a + (j + 1) % 3])
     c = np.concatenate([3 * b + (kk + 1) % 3, 3 * b + kk])
     G = sp.coo_matrix((np.ones(len(r)), (r, c)), shape=(3 * k, 3 * k))
-    _, lab = connected_components(G, directed=False)
-    uniq, first, inv = np.unique(lab, return_index=True, return_inverse=True)
-    Fl = inv.reshape(k, 3).astype(np.int64)
+    nc, lab = connected_components(G, directed=False)
+    first = np.empty(nc, dtype=np.int64)
+    first[lab[::-1]] = np.arange(3 * k - 1, -1, -1)  # the first corner of each component (labels are 0..nc-1)
+    Fl = lab.reshape(k, 3).astype(np.int64)
     vert = F[faces].ravel()[first]
     return topo.V[vert], Fl, vert
 
@@ -207,16 +209,18 @@ def flatten_components(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, k: in
     vgroup = np.full(n, -1, dtype=np.int64)
     vgroup[Fl.ravel()] = np.repeat(fgroup, 3)
     a, b = Fl.ravel(), Fl[:, [1, 2, 0]].ravel()
-    ue = np.unique(np.minimum(a, b) * n + np.maximum(a, b))
+    ue = unique_ints(np.minimum(a, b) * n + np.maximum(a, b))
     euler = (np.bincount(vgroup[vgroup >= 0], minlength=k) - np.bincount(vgroup[ue // n], minlength=k)
              + np.bincount(fgroup, minlength=k))
     disk = euler == 1
     iso, flips, cross = np.full(k, np.inf), np.zeros(k, dtype=np.int64), np.full(k, -1, dtype=np.int64)
     uv = np.zeros((n, 2))
-    bd = ~np.isin(a * n + b, b * n + a)  # boundary half-edges
+    rev = np.sort(b * n + a)
+    q = a * n + b
+    bd = rev[np.minimum(np.searchsorted(rev, q), len(rev) - 1)] != q  # boundary half-edges: no twin
     # two pins per chart, far apart and independent of the row order (LSCM's map depends on its pins): the boundary
     # vertex farthest from the one of smallest key, and the one farthest from that
-    bv = np.unique(a[bd])
+    bv = unique_ints(a[bd])
     gb = vgroup[bv]
     vkey = np.arange(n) if vkey is None else vkey
     p0, _ = _farthest_per_group(Vl, bv, gb, _first_per_group(bv, gb, vkey, k), vkey, k)
@@ -276,7 +280,9 @@ def _lscm(Vl: np.ndarray, Fl: np.ndarray, p0: np.ndarray, p1: np.ndarray) -> np.
     at 0."""
     import igl
 
-    used = np.unique(Fl)
+    mark = np.zeros(len(Vl), dtype=bool)
+    mark[Fl.ravel()] = True
+    used = np.flatnonzero(mark)
     loc = np.full(len(Vl), -1, dtype=np.int64)
     loc[used] = np.arange(len(used))
     puv = np.zeros((len(p0) + len(p1), 2))
@@ -310,7 +316,7 @@ def _crossings_per_chart(uv, Fl, a, b, bd, vgroup, check, k) -> np.ndarray:
 
     E = np.column_stack([a[bd], b[bd]])
     E = E[check[vgroup[E[:, 0]]]]
-    rows = np.unique(E)
+    rows = unique_ints(E)
     gr = vgroup[rows]
     lo = np.full((k, 2), np.inf)
     hi = np.full((k, 2), -np.inf)
@@ -463,13 +469,13 @@ def _smooth(topo: Topology, label: np.ndarray, faces: np.ndarray, passes: int = 
             cand = nb[r][(nb[r] >= 0) & (nb[r] != label[f])]
             if len(cand) < 2:
                 continue
-            vals, cnt = np.unique(cand, return_counts=True)
-            if cnt.max() < 2:
+            cl = cand.tolist()
+            tgt = max(set(cl), key=lambda c: (cl.count(c), -c))  # the most frequent (smallest on a tie)
+            if cl.count(tgt) < 2:
                 continue
             # re-check against the current labels (earlier moves in this pass)
             cur = [label[opp[3 * f + j] // 3] if opp[3 * f + j] >= 0 and not topo.crease[3 * f + j] else -3
                    for j in range(3)]
-            tgt = int(vals[np.argmax(cnt)])
             if sum(c == tgt for c in cur) < 2 or sum(c == label[f] for c in cur) > 1:
                 continue
             if sum(c == label[f] for c in cur) == 1:
@@ -504,7 +510,8 @@ def _stretches(topo: Topology, hs: np.ndarray) -> list[np.ndarray]:
     eid = np.concatenate([np.arange(n), np.arange(n)])
     o = np.argsort(ends, kind="stable")
     ends, eid = ends[o], eid[o]
-    verts, start, cnt = np.unique(ends, return_index=True, return_counts=True)
+    start = np.flatnonzero(np.r_[True, ends[1:] != ends[:-1]])  # ends is sorted
+    verts, cnt = ends[start], np.diff(np.r_[start, len(ends)])
     join = (cnt == 2) & ~(np.abs(topo.defect[verts]) > CONE_DEFECT)
     if (cnt <= 2).all() and (~join).sum() == 2:  # one simple path (the common case) needs no graph
         path, heads = _chain(a, b)
@@ -514,7 +521,7 @@ def _stretches(topo: Topology, hs: np.ndarray) -> list[np.ndarray]:
     out = []
     for i in range(int(lab.max()) + 1):
         g = hs[lab == i]
-        if len(np.unique(np.concatenate([a[lab == i], b[lab == i]]))) == len(g):  # a closed loop: make it a path
+        if len(unique_ints(np.concatenate([a[lab == i], b[lab == i]]))) == len(g):  # a closed loop: make it a path
             g = g[1:]
         if len(g):
             out.append(g)
@@ -640,7 +647,7 @@ def _merge(topo: Topology, chart: np.ndarray, glued: np.ndarray, bound: float, s
         ca, cb = chart[h // 3], chart[opp[h] // 3]
         base = int(chart.max()) + 1
         key = ca * base + cb
-        uk, inv = np.unique(key, return_inverse=True)
+        uk, _, inv = unique_inverse(key)
         length = np.bincount(inv, weights=topo.hlen[h])
         size = np.array([len(members[int(x)]) for x in (uk // base)]) + np.array(
             [len(members[int(x)]) for x in (uk % base)])

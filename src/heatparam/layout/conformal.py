@@ -57,15 +57,21 @@ def _conformal_energy(V: np.ndarray, F: np.ndarray) -> tuple[sp.csc_matrix, np.n
     return Q, mass, loops
 
 
-#: Spectral conformal map: the inverse iteration stops when its layout (B-unit) moves by less than this
+#: Spectral conformal map: the iteration stops when its layout (B-unit) moves by less than this (for ``krylov``: its
+#: distance from the previous Ritz pair's plane, a turn within the eigenplane is no move)
 SCP_TOL = 1e-6
 #: ... or after this many solves
 SCP_MAX_ITERS = 60
 #: ... with Q + SCP_SHIFT·(mean diagonal of Q / mean boundary mass)·B factorized (Q itself is singular)
 SCP_SHIFT = 1e-8
+#: ``krylov``: the most basis vectors kept (two per solve); then it restarts from its two lowest Ritz pairs
+SCP_BASIS = 24
+#: ``method`` of :func:`spectral_conformal`
+SCP_METHODS = ("krylov", "inverse")
 
 
-def spectral_conformal(V: np.ndarray, F: np.ndarray, backend: str = "auto") -> tuple[np.ndarray, int]:
+def spectral_conformal(V: np.ndarray, F: np.ndarray, backend: str = "auto", method: str = "krylov"
+                       ) -> tuple[np.ndarray, int]:
     """Spectral conformal parameterization (Mullen, Tong, Alliez, Desbrun 2008): the layout x = (u, v) that
     minimizes the conformal energy E_C(x) = xᵀQx (:func:`_conformal_energy`) subject to xᵀBx = 1 and a zero
     B-weighted mean, B = diag(boundary masses) for u and v: the generalized eigenvector of Q x = λ B x with the
@@ -76,16 +82,29 @@ def spectral_conformal(V: np.ndarray, F: np.ndarray, backend: str = "auto") -> t
     holes (2.4 × 1.8) became a 4.6 × 1.0 lens (start energy 2.82; this map 1.14), the demo's part 1.06 → 1.003.
     On developable surfaces both are the isometry up to a similarity.
 
-    Solved by inverse iteration, x ← (Q + εB)⁻¹ B x, B-centred and B-normalized at every step (one factorization,
-    ``solvers.Factor``; PARDISO for large systems), from the 3D distances to two far boundary vertices (a start that
-    a rigid motion of the input does not change), until the B-unit layout moves by less than :data:`SCP_TOL` (at
-    most :data:`SCP_MAX_ITERS` solves; 3-17 on the meshes of ``BENCHMARKS.md`` §13a, 28 on a noisy 191k part cut
-    open), then turned so that the longest boundary loop's first vertex and the vertex of that loop farthest from
-    it lie on a line parallel to the u axis (as LSCM's two pins were).
+    Both methods use one factorization of Q + εB (``solvers.Factor``; PARDISO for large systems), B-centre their
+    vectors and start from the 3D distances to two far boundary vertices (a start that a rigid motion of the input
+    does not change):
+
+    ``krylov`` (default): the eigenvalue is double (a layout and its 90° turn J x have the same energy, Q J = J Q),
+        so every solve y = (Q + εB)⁻¹ B x adds y and J y to a B-orthonormal basis W at the cost of one solve; the
+        Ritz pair of the smallest eigenvalue of Wᵀ Q W (Rayleigh–Ritz) is the layout, and x its Ritz vector. It
+        stops when that vector's B-distance from the previous Ritz plane is below :data:`SCP_TOL`. A block Krylov
+        space: 8 solves instead of inverse iteration's 17 on a 191k noisy part (BENCHMARKS.md §17a).
+    ``inverse``: inverse iteration x ← (Q + εB)⁻¹ B x until the B-unit layout moves by less than :data:`SCP_TOL`
+        (3-17 solves on the meshes of ``BENCHMARKS.md`` §13a, 28 on a noisy 191k part cut open; at most
+        :data:`SCP_MAX_ITERS`). Kept for the seams stage's cut-open meshes (``pipeline.seams``): beetle upsampled
+        to 311k, cut open, has a converged eigenvector whose slits cross at 6 places where seams meet a hole,
+        while the inverse iteration's layout after its cap of 60 solves opens to a bijective start (§14d, §17a).
+
+    The layout is then turned so that the longest boundary loop's first vertex and the vertex of that loop farthest
+    from it lie on a line parallel to the u axis (as LSCM's two pins were).
     Returns (uv (n,2), solves); vertices no face uses are at 0.
     """
     from heatparam.solvers import Factor, large_system_backend
 
+    if method not in SCP_METHODS:
+        raise ValueError(f"method must be one of {SCP_METHODS}, not {method!r}")
     n = len(V)
     Q, mass, loops = _conformal_energy(V, F)
     if not mass.any():
@@ -110,23 +129,18 @@ def spectral_conformal(V: np.ndarray, F: np.ndarray, backend: str = "auto") -> t
     # start: the 3D distances to a and to far, which a rigid motion of the input leaves as they are (so does Q, B)
     x = np.linalg.norm(V[used][None] - V[[a, far]][:, None], axis=2).ravel()
 
-    def centred_unit(x: np.ndarray) -> np.ndarray:
+    def centred(x: np.ndarray) -> np.ndarray:
         x = x.reshape(2, nu)
-        x = x - (x @ bu / bu.sum())[:, None]
-        x = x.ravel()
-        return x / np.sqrt(x @ (b * x))
+        return (x - (x @ bu / bu.sum())[:, None]).ravel()
 
-    x, solves = centred_unit(x), 0
-    while solves < SCP_MAX_ITERS:
+    def solve(x: np.ndarray) -> np.ndarray:
         y = fac.solve(b * x)
-        solves += 1
         if not np.isfinite(y).all():
             raise HeatparamError("the conformal layout failed (non-finite solve): is the mesh degenerate?")
-        y = centred_unit(y)
-        d = y - x
-        x = y
-        if d @ (b * d) <= SCP_TOL**2:  # the B-unit layout moved by less than SCP_TOL
-            break
+        return centred(y)
+
+    x = centred(x)
+    x, solves = (_krylov if method == "krylov" else _inverse_iteration)(Q, b, solve, x / np.sqrt(x @ (b * x)))
     uv = np.zeros((n, 2))
     uv[used] = x.reshape(2, nu).T
     # x is determined up to a rotation (x and its 90° turn have the same energy): turn it as LSCM's pins did, the
@@ -139,7 +153,75 @@ def spectral_conformal(V: np.ndarray, F: np.ndarray, backend: str = "auto") -> t
     return uv @ np.array([[c, -s], [s, c]]), solves
 
 
-def conformal_layout(V: np.ndarray, F: np.ndarray, backend: str = "auto") -> np.ndarray:
+def _inverse_iteration(Q, b: np.ndarray, solve, x: np.ndarray) -> tuple[np.ndarray, int]:
+    """x ← solve(x), B-normalized, until it moves by less than SCP_TOL (B-norm) or SCP_MAX_ITERS solves."""
+    solves = 0
+    while solves < SCP_MAX_ITERS:
+        y = solve(x)
+        solves += 1
+        y = y / np.sqrt(y @ (b * y))
+        d = y - x
+        x = y
+        if d @ (b * d) <= SCP_TOL**2:  # the B-unit layout moved by less than SCP_TOL
+            break
+    return x, solves
+
+
+def _turn(x: np.ndarray) -> np.ndarray:
+    """J x: the layout x = (u, v) turned by 90° (-v, u)."""
+    u, v = np.split(x, 2)
+    return np.concatenate([-v, u])
+
+
+def _krylov(Q, b: np.ndarray, solve, x: np.ndarray) -> tuple[np.ndarray, int]:
+    """Rayleigh–Ritz on the block Krylov space of [x, J x] (:func:`spectral_conformal`, ``krylov``): (the B-unit
+    Ritz vector of the smallest Ritz value, solves). The basis W (at most :data:`SCP_BASIS` rows) and H = W Q Wᵀ
+    grow a row at a time (one product with Q per vector)."""
+    import scipy.linalg as sla
+
+    W = np.empty((SCP_BASIS, len(x)))  # B-orthonormal rows
+    H = np.empty((SCP_BASIS, SCP_BASIS))
+    k = 0
+
+    def add(v: np.ndarray) -> None:
+        nonlocal k
+        for _ in range(2):  # Gram-Schmidt twice (B-inner product)
+            v = v - (W[:k] @ (b * v)) @ W[:k]
+        nv = float(np.sqrt(max(v @ (b * v), 0.0)))
+        if nv > 1e-10:  # else v lies in the span already (round-off)
+            W[k] = v / nv
+            h = W[: k + 1] @ (Q @ W[k])
+            H[k, : k + 1] = h
+            H[: k + 1, k] = h
+            k += 1
+
+    add(x)
+    add(_turn(x))
+    plane, solves = None, 0
+    while solves < SCP_MAX_ITERS:
+        if k + 2 > SCP_BASIS:  # thick restart: keep the two lowest Ritz pairs (H becomes their Ritz values)
+            lam, Z = sla.eigh(H[:k, :k])
+            keep = min(4, k)
+            W[:keep] = Z[:, :keep].T @ W[:k]
+            H[:keep, :keep] = np.diag(lam[:keep])
+            k = keep
+        y = solve(x)
+        solves += 1
+        add(y)
+        add(_turn(y))
+        _, Z = sla.eigh(H[:k, :k])
+        x = Z[:, 0] @ W[:k]
+        x /= np.sqrt(x @ (b * x))
+        if plane is not None:  # distance from the previous Ritz plane {x', J x'}
+            d = x - sum((p @ (b * x)) * p for p in plane)
+            if d @ (b * d) <= SCP_TOL**2:
+                break
+        jx = _turn(x)
+        plane = (x, jx / np.sqrt(jx @ (b * jx)))
+    return x, solves
+
+
+def conformal_layout(V: np.ndarray, F: np.ndarray, backend: str = "auto", method: str = "krylov") -> np.ndarray:
     """A quick reference layout: the spectral conformal map (:func:`spectral_conformal`, no pins), mirrored to
     keep the mesh's orientation, scaled to the 3D area and centred. (n,2) float64.
 
@@ -149,7 +231,7 @@ def conformal_layout(V: np.ndarray, F: np.ndarray, backend: str = "auto") -> np.
     (beetle 1.064 → 1.044, halftunnel cut open 1.218 → 1.069, the demo's part 1.060 → 1.003, its 196k version 2.08
     → 1.05, a 191k noisy cylinder with holes 2.82 → 1.14); it costs one factorization (as LSCM) and 3-28 solves.
     """
-    uv, _ = spectral_conformal(V, F, backend)
+    uv, _ = spectral_conformal(V, F, backend, method)
     if not np.isfinite(uv).all():
         raise HeatparamError("the conformal layout failed: is the mesh degenerate?")
     signed = signed_areas(uv, F).sum()

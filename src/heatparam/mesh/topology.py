@@ -25,6 +25,19 @@ def unique_ints(x: np.ndarray) -> np.ndarray:
     return x[keep]
 
 
+def unique_inverse(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``np.unique(x, return_index=True, return_inverse=True)`` for a 1-D integer array by one stable sort (see
+    :func:`unique_ints`): (sorted unique values (u,), the first index of each (u,), the inverse (len(x),))."""
+    x = np.asarray(x).ravel()
+    order = np.argsort(x, kind="stable")
+    xs = x[order]
+    new = np.ones(len(x), dtype=bool)
+    new[1:] = xs[1:] != xs[:-1]
+    inv = np.empty(len(x), dtype=np.int64)
+    inv[order] = np.cumsum(new) - 1
+    return xs[new], order[new], inv
+
+
 def face_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Triangle areas, (m,) float64."""
     return 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)

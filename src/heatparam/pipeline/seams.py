@@ -88,7 +88,9 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat,
         paths = hole_seams(surface.V, surface.F, surface.info.boundary_loops)
         Vs, Fs, src = cut_open(surface.V, surface.F, paths)
         try:
-            cut_surface = Surface(Vs, Fs, validate_mesh(Vs, Fs))
+            # the inverse iteration's layout, not the converged eigenvector: on beetle upsampled that one's slits
+            # cross where several seams meet a hole (layout.conformal.spectral_conformal)
+            cut_surface = Surface(Vs, Fs, validate_mesh(Vs, Fs), conformal_method="inverse")
         except HeatparamError as exc:  # a seam set that does not leave a disk (never seen): keep the map
             flat = _finished(flat)
             return SeamResult(flat, None, rep | {"reason": f"the cut-open mesh is not a disk ({exc})"}, [], flat)

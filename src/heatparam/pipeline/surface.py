@@ -19,12 +19,15 @@ class Surface:
 
     ``conformal()`` (the spectral conformal layout scaled to the 3D area, read-only) and ``gradients()`` (the
     refinement's hat gradients and areas) are computed at most once and shared by the fill decision, the start
-    checks and the refinement.
+    checks and the refinement. ``conformal_method``: how the spectral layout is solved
+    (``layout.conformal.spectral_conformal``'s ``method``; the seams stage's cut-open mesh uses ``inverse``).
     """
 
-    def __init__(self, V: np.ndarray, F: np.ndarray, info: MeshInfo, frame: UnitFrame | None = None):
+    def __init__(self, V: np.ndarray, F: np.ndarray, info: MeshInfo, frame: UnitFrame | None = None,
+                 conformal_method: str = "krylov"):
         self.V, self.F, self.info = V, F, info
         self.frame = frame if frame is not None else UnitFrame(0, np.zeros(3))
+        self.conformal_method = conformal_method
 
     @classmethod
     def validated(cls, V: np.ndarray, F: np.ndarray) -> tuple[Surface, Compaction, MeshInfo]:
@@ -44,7 +47,7 @@ class Surface:
         """The conformal layout (``layout.conformal.conformal_layout``: spectral, no pins), (n,2), computed once."""
         from heatparam.layout.conformal import conformal_layout
 
-        uv0 = conformal_layout(self.V, self.F)
+        uv0 = conformal_layout(self.V, self.F, method=self.conformal_method)
         uv0.setflags(write=False)
         return uv0
 
