@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from heatparam import datasets
-from heatparam.layout.conformal import conformal_layout, spectral_conformal
+from heatparam.layout.conformal import SCP_TOL, conformal_layout, spectral_conformal
 from heatparam.mesh.topology import boundary_loops
 from heatparam.refine.start import lscm_start
 
@@ -84,8 +84,11 @@ def test_conformal_energy_is_libigls_and_backends_agree(name):
     ref, _ = igl.lscm(s.V, s.F, pins, pin_uv)
     assert np.abs(ours - ref).max() <= 1e-8 * np.ptp(ref, axis=0).max()
     uv, _ = spectral_conformal(s.V, s.F)
+    ext = np.ptp(uv, axis=0).max()
     for backend in ("scipy", "cholespy"):
-        assert np.allclose(spectral_conformal(s.V, s.F, backend=backend)[0], uv, atol=1e-9)
+        # to a tenth of the method's stopping tolerance (each backend's round-off builds its own Krylov space;
+        # measured 1.6e-8 of the extent, the inverse iteration 5e-11)
+        assert np.abs(spectral_conformal(s.V, s.F, backend=backend)[0] - uv).max() <= 0.1 * SCP_TOL * ext
 
 
 

@@ -133,14 +133,16 @@ def spectral_conformal(V: np.ndarray, F: np.ndarray, backend: str = "auto", meth
         x = x.reshape(2, nu)
         return (x - (x @ bu / bu.sum())[:, None]).ravel()
 
-    def solve(x: np.ndarray) -> np.ndarray:
-        y = fac.solve(b * x)
+    def solve(rhs: np.ndarray) -> np.ndarray:
+        """(Q + εB)⁻¹ rhs, B-centred."""
+        y = fac.solve(rhs)
         if not np.isfinite(y).all():
             raise HeatparamError("the conformal layout failed (non-finite solve): is the mesh degenerate?")
         return centred(y)
 
     x = centred(x)
-    x, solves = (_krylov if method == "krylov" else _inverse_iteration)(Q, b, solve, x / np.sqrt(x @ (b * x)))
+    x = x / np.sqrt(x @ (b * x))
+    x, solves = _krylov(Q, b, solve, x) if method == "krylov" else _inverse_iteration(b, solve, x)
     uv = np.zeros((n, 2))
     uv[used] = x.reshape(2, nu).T
     # x is determined up to a rotation (x and its 90° turn have the same energy): turn it as LSCM's pins did, the
@@ -153,11 +155,11 @@ def spectral_conformal(V: np.ndarray, F: np.ndarray, backend: str = "auto", meth
     return uv @ np.array([[c, -s], [s, c]]), solves
 
 
-def _inverse_iteration(Q, b: np.ndarray, solve, x: np.ndarray) -> tuple[np.ndarray, int]:
-    """x ← solve(x), B-normalized, until it moves by less than SCP_TOL (B-norm) or SCP_MAX_ITERS solves."""
+def _inverse_iteration(b: np.ndarray, solve, x: np.ndarray) -> tuple[np.ndarray, int]:
+    """x ← solve(B x), B-normalized, until it moves by less than SCP_TOL (B-norm) or SCP_MAX_ITERS solves."""
     solves = 0
     while solves < SCP_MAX_ITERS:
-        y = solve(x)
+        y = solve(b * x)
         solves += 1
         y = y / np.sqrt(y @ (b * y))
         d = y - x
@@ -168,56 +170,75 @@ def _inverse_iteration(Q, b: np.ndarray, solve, x: np.ndarray) -> tuple[np.ndarr
 
 
 def _turn(x: np.ndarray) -> np.ndarray:
-    """J x: the layout x = (u, v) turned by 90° (-v, u)."""
+    """J x: the layout x = (u, v) turned by 90° (-v, u); also on the boundary entries alone (u's, then v's)."""
     u, v = np.split(x, 2)
     return np.concatenate([-v, u])
 
 
 def _krylov(Q, b: np.ndarray, solve, x: np.ndarray) -> tuple[np.ndarray, int]:
-    """Rayleigh–Ritz on the block Krylov space of [x, J x] (:func:`spectral_conformal`, ``krylov``): (the B-unit
-    Ritz vector of the smallest Ritz value, solves). The basis W (at most :data:`SCP_BASIS` rows) and H = W Q Wᵀ
-    grow a row at a time (one product with Q per vector)."""
+    """Rayleigh–Ritz on the block Krylov space of [y, J y], y = (Q + εB)⁻¹ B x (:func:`spectral_conformal`,
+    ``krylov``): (the B-unit Ritz vector of the smallest Ritz value, solves).
+
+    The B-orthonormal basis W and H = W Q Wᵀ grow a vector at a time (one product with Q each); B is zero inside,
+    so B-inner products read the boundary entries only (Wb). Each basis vector is its own array: rows of one
+    preallocated block above glibc's mmap threshold were fresh pages on every write (a 3 MB row took up to 49 ms
+    on the benchmark machine). At most :data:`SCP_BASIS` vectors, then a thick restart from the two lowest Ritz
+    pairs."""
     import scipy.linalg as sla
 
-    W = np.empty((SCP_BASIS, len(x)))  # B-orthonormal rows
+    bi = np.flatnonzero(b)  # the boundary entries: u's, then v's (b is the same for both)
+    bb = b[bi]
+    W: list[np.ndarray] = []
+    Wb: list[np.ndarray] = []
     H = np.empty((SCP_BASIS, SCP_BASIS))
-    k = 0
+
+    def combine(a: np.ndarray, rows: list[np.ndarray]) -> np.ndarray:
+        out = a[0] * rows[0]
+        for a_r, r in zip(a[1:], rows[1:], strict=True):
+            out += a_r * r
+        return out
 
     def add(v: np.ndarray) -> None:
-        nonlocal k
+        k = len(W)
         for _ in range(2):  # Gram-Schmidt twice (B-inner product)
-            v = v - (W[:k] @ (b * v)) @ W[:k]
-        nv = float(np.sqrt(max(v @ (b * v), 0.0)))
+            if k:
+                c = np.array(Wb) @ (bb * v[bi])
+                v = v - combine(c, W)
+        vb = v[bi]
+        nv = float(np.sqrt(max(vb @ (bb * vb), 0.0)))
         if nv > 1e-10:  # else v lies in the span already (round-off)
-            W[k] = v / nv
-            h = W[: k + 1] @ (Q @ W[k])
+            W.append(v / nv)
+            Wb.append(vb / nv)
+            q = Q @ W[-1]
+            h = np.array([w @ q for w in W])
             H[k, : k + 1] = h
             H[: k + 1, k] = h
-            k += 1
 
     add(x)
     add(_turn(x))
     plane, solves = None, 0
     while solves < SCP_MAX_ITERS:
-        if k + 2 > SCP_BASIS:  # thick restart: keep the two lowest Ritz pairs (H becomes their Ritz values)
+        if len(W) + 2 > SCP_BASIS:  # thick restart: keep the two lowest Ritz pairs (H becomes their Ritz values)
+            k = len(W)
             lam, Z = sla.eigh(H[:k, :k])
             keep = min(4, k)
-            W[:keep] = Z[:, :keep].T @ W[:k]
+            W[:] = [combine(Z[:, i], W) for i in range(keep)]
+            Wb[:] = [combine(Z[:, i], Wb) for i in range(keep)]
             H[:keep, :keep] = np.diag(lam[:keep])
-            k = keep
-        y = solve(x)
+        y = solve(b * x)
         solves += 1
         add(y)
         add(_turn(y))
+        k = len(W)
         _, Z = sla.eigh(H[:k, :k])
-        x = Z[:, 0] @ W[:k]
-        x /= np.sqrt(x @ (b * x))
-        if plane is not None:  # distance from the previous Ritz plane {x', J x'}
-            d = x - sum((p @ (b * x)) * p for p in plane)
-            if d @ (b * d) <= SCP_TOL**2:
+        z = Z[:, 0] / np.sqrt(Z[:, 0] @ Z[:, 0])  # B-unit: W's vectors are B-orthonormal
+        x, xb = combine(z, W), combine(z, Wb)
+        if plane is not None:  # B-distance from the previous Ritz plane {x', J x'}
+            d = xb - sum((p @ (bb * xb)) * p for p in plane)
+            if d @ (bb * d) <= SCP_TOL**2:
                 break
-        jx = _turn(x)
-        plane = (x, jx / np.sqrt(jx @ (b * jx)))
+        jb = _turn(xb)
+        plane = (xb, jb / np.sqrt(jb @ (bb * jb)))
     return x, solves
 
 
