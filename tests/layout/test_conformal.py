@@ -115,3 +115,15 @@ def test_unknown_method_is_refused():
     s = datasets.cone_s_strip()
     with pytest.raises(ValueError, match="method"):
         spectral_conformal(s.V, s.F, method="lanczos")
+
+
+@pytest.mark.parametrize("method", ["krylov", "inverse"])
+def test_max_solves_caps_the_iteration(method):
+    """The seams stage's cut meshes stop the inverse iteration early (SCP_CUT_MAX_ITERS): the cap holds for both
+    methods, and a capped layout is still a layout (finite, turned like the converged one)."""
+    s = datasets.noisy_scan_part()  # 10 inverse / 5 Krylov solves to converge
+    uv, k = spectral_conformal(s.V, s.F, method=method, max_solves=2)
+    assert k == 2 and np.isfinite(uv).all()
+    full, k_full = spectral_conformal(s.V, s.F, method=method)
+    assert k_full > 2
+    assert np.abs(uv - full).max() < 0.5 * np.ptp(full, axis=0).max()

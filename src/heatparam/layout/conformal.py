@@ -62,6 +62,10 @@ def _conformal_energy(V: np.ndarray, F: np.ndarray) -> tuple[sp.csc_matrix, np.n
 SCP_TOL = 1e-6
 #: ... or after this many solves
 SCP_MAX_ITERS = 60
+#: The seams stage's cut-open meshes: inverse iteration stopped after at most this many solves (beetle upsampled to
+#: 311k, cut open: 20 solves reopen to a start of energy 1.163 in 12 s, 60 to 1.274 in 24 s, 10 not at all; the
+#: converged layout crosses itself: BENCHMARKS.md §17a)
+SCP_CUT_MAX_ITERS = 20
 #: ... with Q + SCP_SHIFT·(mean diagonal of Q / mean boundary mass)·B factorized (Q itself is singular)
 SCP_SHIFT = 1e-8
 #: ``krylov``: the most basis vectors kept (two per solve); then it restarts from its two lowest Ritz pairs
@@ -70,8 +74,8 @@ SCP_BASIS = 24
 SCP_METHODS = ("krylov", "inverse")
 
 
-def spectral_conformal(V: np.ndarray, F: np.ndarray, backend: str = "auto", method: str = "krylov"
-                       ) -> tuple[np.ndarray, int]:
+def spectral_conformal(V: np.ndarray, F: np.ndarray, backend: str = "auto", method: str = "krylov",
+                       max_solves: int = SCP_MAX_ITERS) -> tuple[np.ndarray, int]:
     """Spectral conformal parameterization (Mullen, Tong, Alliez, Desbrun 2008): the layout x = (u, v) that
     minimizes the conformal energy E_C(x) = xᵀQx (:func:`_conformal_energy`) subject to xᵀBx = 1 and a zero
     B-weighted mean, B = diag(boundary masses) for u and v: the generalized eigenvector of Q x = λ B x with the
@@ -92,10 +96,12 @@ def spectral_conformal(V: np.ndarray, F: np.ndarray, backend: str = "auto", meth
         stops when that vector's B-distance from the previous Ritz plane is below :data:`SCP_TOL`. A block Krylov
         space: 8 solves instead of inverse iteration's 17 on a 191k noisy part (BENCHMARKS.md §17a).
     ``inverse``: inverse iteration x ← (Q + εB)⁻¹ B x until the B-unit layout moves by less than :data:`SCP_TOL`
-        (3-17 solves on the meshes of ``BENCHMARKS.md`` §13a, 28 on a noisy 191k part cut open; at most
-        :data:`SCP_MAX_ITERS`). Kept for the seams stage's cut-open meshes (``pipeline.seams``): beetle upsampled
-        to 311k, cut open, has a converged eigenvector whose slits cross at 6 places where seams meet a hole,
-        while the inverse iteration's layout after its cap of 60 solves opens to a bijective start (§14d, §17a).
+        (3-17 solves on the meshes of ``BENCHMARKS.md`` §13a, 28 on a noisy 191k part cut open). Kept for the seams
+        stage's cut-open meshes (``pipeline.seams``, with ``max_solves`` :data:`SCP_CUT_MAX_ITERS`): beetle
+        upsampled to 311k, cut open, has a converged eigenvector whose slits cross at 6 places where seams meet a
+        hole, while the inverse iteration's unconverged layout opens to a bijective start (§14d, §17a).
+
+    max_solves : at most this many solves (default :data:`SCP_MAX_ITERS`).
 
     The layout is then turned so that the longest boundary loop's first vertex and the vertex of that loop farthest
     from it lie on a line parallel to the u axis (as LSCM's two pins were).
@@ -142,7 +148,8 @@ def spectral_conformal(V: np.ndarray, F: np.ndarray, backend: str = "auto", meth
 
     x = centred(x)
     x = x / np.sqrt(x @ (b * x))
-    x, solves = _krylov(Q, b, solve, x) if method == "krylov" else _inverse_iteration(b, solve, x)
+    x, solves = (_krylov(Q, b, solve, x, max_solves) if method == "krylov"
+                 else _inverse_iteration(b, solve, x, max_solves))
     uv = np.zeros((n, 2))
     uv[used] = x.reshape(2, nu).T
     # x is determined up to a rotation (x and its 90° turn have the same energy): turn it as LSCM's pins did, the
@@ -155,10 +162,10 @@ def spectral_conformal(V: np.ndarray, F: np.ndarray, backend: str = "auto", meth
     return uv @ np.array([[c, -s], [s, c]]), solves
 
 
-def _inverse_iteration(b: np.ndarray, solve, x: np.ndarray) -> tuple[np.ndarray, int]:
-    """x ← solve(B x), B-normalized, until it moves by less than SCP_TOL (B-norm) or SCP_MAX_ITERS solves."""
+def _inverse_iteration(b: np.ndarray, solve, x: np.ndarray, max_solves: int) -> tuple[np.ndarray, int]:
+    """x ← solve(B x), B-normalized, until it moves by less than SCP_TOL (B-norm) or after max_solves solves."""
     solves = 0
-    while solves < SCP_MAX_ITERS:
+    while solves < max_solves:
         y = solve(b * x)
         solves += 1
         y = y / np.sqrt(y @ (b * y))
@@ -175,7 +182,7 @@ def _turn(x: np.ndarray) -> np.ndarray:
     return np.concatenate([-v, u])
 
 
-def _krylov(Q, b: np.ndarray, solve, x: np.ndarray) -> tuple[np.ndarray, int]:
+def _krylov(Q, b: np.ndarray, solve, x: np.ndarray, max_solves: int) -> tuple[np.ndarray, int]:
     """Rayleigh–Ritz on the block Krylov space of [y, J y], y = (Q + εB)⁻¹ B x (:func:`spectral_conformal`,
     ``krylov``): (the B-unit Ritz vector of the smallest Ritz value, solves).
 
@@ -217,7 +224,7 @@ def _krylov(Q, b: np.ndarray, solve, x: np.ndarray) -> tuple[np.ndarray, int]:
     add(x)
     add(_turn(x))
     plane, solves = None, 0
-    while solves < SCP_MAX_ITERS:
+    while solves < max_solves:
         if len(W) + 2 > SCP_BASIS:  # thick restart: keep the two lowest Ritz pairs (H becomes their Ritz values)
             k = len(W)
             lam, Z = sla.eigh(H[:k, :k])
@@ -242,7 +249,8 @@ def _krylov(Q, b: np.ndarray, solve, x: np.ndarray) -> tuple[np.ndarray, int]:
     return x, solves
 
 
-def conformal_layout(V: np.ndarray, F: np.ndarray, backend: str = "auto", method: str = "krylov") -> np.ndarray:
+def conformal_layout(V: np.ndarray, F: np.ndarray, backend: str = "auto", method: str = "krylov",
+                     max_solves: int = SCP_MAX_ITERS) -> np.ndarray:
     """A quick reference layout: the spectral conformal map (:func:`spectral_conformal`, no pins), mirrored to
     keep the mesh's orientation, scaled to the 3D area and centred. (n,2) float64.
 
@@ -252,7 +260,7 @@ def conformal_layout(V: np.ndarray, F: np.ndarray, backend: str = "auto", method
     (beetle 1.064 → 1.044, halftunnel cut open 1.218 → 1.069, the demo's part 1.060 → 1.003, its 196k version 2.08
     → 1.05, a 191k noisy cylinder with holes 2.82 → 1.14); it costs one factorization (as LSCM) and 3-28 solves.
     """
-    uv, _ = spectral_conformal(V, F, backend, method)
+    uv, _ = spectral_conformal(V, F, backend, method, max_solves)
     if not np.isfinite(uv).all():
         raise HeatparamError("the conformal layout failed: is the mesh degenerate?")
     signed = signed_areas(uv, F).sum()

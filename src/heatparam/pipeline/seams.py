@@ -15,6 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from heatparam.errors import HeatparamError
+from heatparam.layout.conformal import SCP_CUT_MAX_ITERS
 from heatparam.mesh.seams import cut_open, hole_seams
 from heatparam.mesh.validate import validate_mesh
 from heatparam.options import SEAM_MIN_GAIN, SEAM_PAUSE_EXCESS, SEAM_PAUSE_FLOOR, SEAM_TRY_EXCESS
@@ -89,8 +90,9 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat,
         Vs, Fs, src = cut_open(surface.V, surface.F, paths)
         try:
             # the inverse iteration's layout, not the converged eigenvector: on beetle upsampled that one's slits
-            # cross where several seams meet a hole (layout.conformal.spectral_conformal)
-            cut_surface = Surface(Vs, Fs, validate_mesh(Vs, Fs), conformal_method="inverse")
+            # cross where several seams meet a hole (layout.conformal.SCP_CUT_MAX_ITERS)
+            cut_surface = Surface(Vs, Fs, validate_mesh(Vs, Fs), conformal_method="inverse",
+                                  conformal_max_solves=SCP_CUT_MAX_ITERS)
         except HeatparamError as exc:  # a seam set that does not leave a disk (never seen): keep the map
             flat = _finished(flat)
             return SeamResult(flat, None, rep | {"reason": f"the cut-open mesh is not a disk ({exc})"}, [], flat)

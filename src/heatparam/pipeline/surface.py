@@ -19,15 +19,16 @@ class Surface:
 
     ``conformal()`` (the spectral conformal layout scaled to the 3D area, read-only) and ``gradients()`` (the
     refinement's hat gradients and areas) are computed at most once and shared by the fill decision, the start
-    checks and the refinement. ``conformal_method``: how the spectral layout is solved
-    (``layout.conformal.spectral_conformal``'s ``method``; the seams stage's cut-open mesh uses ``inverse``).
+    checks and the refinement. ``conformal_method``, ``conformal_max_solves``: how the spectral layout is solved
+    (``layout.conformal.spectral_conformal``'s ``method`` and ``max_solves``; the seams stage's cut-open mesh uses
+    ``inverse`` and ``SCP_CUT_MAX_ITERS``).
     """
 
     def __init__(self, V: np.ndarray, F: np.ndarray, info: MeshInfo, frame: UnitFrame | None = None,
-                 conformal_method: str = "krylov"):
+                 conformal_method: str = "krylov", conformal_max_solves: int | None = None):
         self.V, self.F, self.info = V, F, info
         self.frame = frame if frame is not None else UnitFrame(0, np.zeros(3))
-        self.conformal_method = conformal_method
+        self.conformal_method, self.conformal_max_solves = conformal_method, conformal_max_solves
 
     @classmethod
     def validated(cls, V: np.ndarray, F: np.ndarray) -> tuple[Surface, Compaction, MeshInfo]:
@@ -45,9 +46,10 @@ class Surface:
     @functools.cache  # noqa: B019 - one Surface per flattening; the cache lives exactly as long as it
     def conformal(self) -> np.ndarray:
         """The conformal layout (``layout.conformal.conformal_layout``: spectral, no pins), (n,2), computed once."""
-        from heatparam.layout.conformal import conformal_layout
+        from heatparam.layout.conformal import SCP_MAX_ITERS, conformal_layout
 
-        uv0 = conformal_layout(self.V, self.F, method=self.conformal_method)
+        uv0 = conformal_layout(self.V, self.F, method=self.conformal_method,
+                               max_solves=self.conformal_max_solves or SCP_MAX_ITERS)
         uv0.setflags(write=False)
         return uv0
 

@@ -54,8 +54,14 @@ def loop_ranges(loops: list[np.ndarray]) -> list[np.ndarray]:
     return [np.arange(e - len(lp), e) for e, lp in zip(ends, loops, strict=True)]
 
 def loop_edges(ranges: list[np.ndarray]) -> np.ndarray:
-    """Closed-polygon edges (e,2) of the index ranges of :func:`loop_ranges`."""
-    return np.vstack([np.column_stack([k, np.roll(k, -1)]) for k in ranges])
+    """Closed-polygon edges (e,2) of the index ranges of :func:`loop_ranges` (each range's last index joins its
+    first), in one pass (an atlas's scaffold has a loop per chart)."""
+    k = np.concatenate(ranges)
+    nxt = np.empty_like(k)
+    nxt[:-1] = k[1:]
+    last = np.cumsum([len(r) for r in ranges]) - 1
+    nxt[last] = [r[0] for r in ranges]
+    return np.column_stack([k, nxt])
 
 class Scaffold(NamedTuple):
     F: np.ndarray  # (s,3) triangles over [surface vertices 0..n-1, then the box corners n..n+3]
