@@ -67,3 +67,17 @@ def test_triangulate_fills_a_polygon_with_a_hole():
     E = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 7], [7, 4]])
     P, T = triangulate(np.vstack([sq, hole]), E)
     assert len(P) == 8 and abs(signed_areas(P, T)).sum() == pytest.approx(16 - 4)
+
+
+def test_sort_based_unique_helpers_agree_with_numpy():
+    """unique_ints / unique_inverse (one sort; NumPy 2.4's hashing np.unique is slow on many keys) give np.unique's
+    values, first indices and inverse, including repeated, negative and empty inputs."""
+    from heatparam.mesh.topology import unique_ints, unique_inverse
+
+    rng = np.random.default_rng(3)
+    for x in (rng.integers(-50, 50, 1000), np.array([7, 7, 7]), np.zeros(0, dtype=np.int64), np.arange(10)[::-1]):
+        u, first, inv = np.unique(x, return_index=True, return_inverse=True)
+        u2, first2, inv2 = unique_inverse(x)
+        assert np.array_equal(u, unique_ints(x)) and np.array_equal(u, u2)
+        assert np.array_equal(first, first2) and np.array_equal(inv.ravel(), inv2)
+        assert np.array_equal(u2[inv2], x)
