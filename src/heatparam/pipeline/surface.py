@@ -8,6 +8,7 @@ import functools
 
 import numpy as np
 
+from heatparam.layout.conformal import SCP_MAX_ITERS
 from heatparam.mesh.frame import UnitFrame, frame_of
 from heatparam.mesh.topology import Compaction, compact
 from heatparam.mesh.validate import MeshInfo, check_arrays, validate_mesh
@@ -25,7 +26,7 @@ class Surface:
     """
 
     def __init__(self, V: np.ndarray, F: np.ndarray, info: MeshInfo, frame: UnitFrame | None = None,
-                 conformal_method: str = "krylov", conformal_max_solves: int | None = None):
+                 conformal_method: str = "krylov", conformal_max_solves: int = SCP_MAX_ITERS):
         self.V, self.F, self.info = V, F, info
         self.frame = frame if frame is not None else UnitFrame(0, np.zeros(3))
         self.conformal_method, self.conformal_max_solves = conformal_method, conformal_max_solves
@@ -46,10 +47,9 @@ class Surface:
     @functools.cache  # noqa: B019 - one Surface per flattening; the cache lives exactly as long as it
     def conformal(self) -> np.ndarray:
         """The conformal layout (``layout.conformal.conformal_layout``: spectral, no pins), (n,2), computed once."""
-        from heatparam.layout.conformal import SCP_MAX_ITERS, conformal_layout
+        from heatparam.layout.conformal import conformal_layout
 
-        uv0 = conformal_layout(self.V, self.F, method=self.conformal_method,
-                               max_solves=self.conformal_max_solves or SCP_MAX_ITERS)
+        uv0 = conformal_layout(self.V, self.F, method=self.conformal_method, max_solves=self.conformal_max_solves)
         uv0.setflags(write=False)
         return uv0
 
