@@ -83,6 +83,8 @@ def test_pardiso_new_analysis_reuses_the_ordering_unless_it_fills_in_too_much():
     f2 = f.refactor(A2)
     assert f2 is not f and f2.ordering[0] is perm and f2.ordering[1] == fill
     assert np.allclose(A2 @ f2.solve(b), b, atol=1e-9)
+    with pytest.raises(RuntimeError, match="freed"):  # the replaced factor was freed before the new one was made
+        f.solve(b)
     # a pattern the permutation does not suit (the grid renumbered at random): METIS orders it anew
     p = rng.permutation(n)
     B = (A[p][:, p] + 5.0 * sp.identity(n)).tocsc()

@@ -124,7 +124,8 @@ class Factor:
         both, so that alternating patterns would settle; they did not, and the union only added nonzeros (beetle
         upsampled to 311k, the cut mesh's fine level: factors of 54.5-56.3M nonzeros on the unions, 53.2-55.4M on
         each pattern alone; in-process 141.8 → 128.1 s and peak 2417 → 2289 MB, one run each; BENCHMARKS.md §15).
-        Other backends: a new :class:`Factor`.
+        Other backends: a new :class:`Factor`. When PARDISO analyses anew, this object is freed first (:meth:`free`)
+        and cannot solve any more.
         """
         if self.backend == "pardiso" and A.shape == self._T.shape:
             U = A if upper else _upper(A)
@@ -133,8 +134,22 @@ class Factor:
                 self._T = T
                 return self
             del T
-            return Factor(U, self.backend, upper=True, ordering=self.ordering)
+            # this factor is replaced: free MKL's copy of it before the new one is made, not after (beetle
+            # upsampled to 311k, the cut mesh's fine level: factors of ~0.5 GB; peak RSS 2321 -> see BENCHMARKS §18)
+            ordering = self.ordering
+            self.free()
+            return Factor(U, self.backend, upper=True, ordering=ordering)
         return Factor(A, self.backend, upper=upper)
+
+    def free(self) -> None:
+        """Release the factorization now (PARDISO keeps it in MKL's memory until told); the object cannot solve
+        after this. :meth:`refactor` frees the factor it replaces."""
+        if getattr(self, "backend", None) == "pardiso" and getattr(self, "_f", None) is not None:
+            try:
+                self._f.free_memory(everything=True)
+            except Exception:  # noqa: BLE001 - interpreter shutdown: nothing left to free into
+                pass
+            self._f = self._T = None
 
     def rebuild_matrix(self) -> sp.spmatrix | None:
         """The matrix from which ``Factor(matrix, backend)`` makes this very factor again (PARDISO: the analysed
@@ -155,6 +170,8 @@ class Factor:
         elif self.backend == "scipy":
             x = self._f.solve(b)
         else:
+            if self._f is None:
+                raise RuntimeError("this PARDISO factorization was freed (Factor.free, or replaced by refactor)")
             x = self._f.solve(self._T, b).reshape(b.shape)  # same matrix object: pypardiso reuses the factor
         if out is None:
             return x
@@ -165,11 +182,7 @@ class Factor:
     def __del__(self) -> None:
         # pypardiso keeps MKL's factor until told otherwise: without this every dropped Factor leaks it
         # (camelhead↑180k polish: 6.6 GB peak instead of 1.6 GB)
-        if getattr(self, "backend", None) == "pardiso" and hasattr(self, "_f"):
-            try:
-                self._f.free_memory(everything=True)
-            except Exception:  # noqa: BLE001 - interpreter shutdown: nothing left to free into
-                pass
+        self.free()
 
 
 def solve_unsymmetric(A: sp.spmatrix, b: np.ndarray, backend: str = "auto") -> np.ndarray:

@@ -14,7 +14,9 @@ already the minimum (e.g. the LSCM start of a developable surface, an isometry t
 find no descent); the threshold is far below tol so that a stiff scaffold holding boundary vertices back cannot
 fake it. A tiny decrease means convergence only if the Newton step was not cut short by the flip barrier and the
 scaffold was already at its lightest (a stiff scaffold slows boundary vertices down); cut-short steps usually
-recover once the scaffold is re-triangulated, so only a run of them stops.
+recover once the scaffold is re-triangulated, so only a run of them stops. With ``excess_tol`` (the atlas's joint
+polish) ``EXCESS_STALL_ITERS`` iterations in a row that each gain less than that fraction of the energy's excess
+over an isometry stop it too, cut short or not.
 
 Scaffold weight. A stiff scaffold keeps boundaries apart while they move a lot, but it acts like a proximal term on
 boundary vertices (thin scaffold triangles): it is relaxed while Newton steps go through uncut and stiffened again
@@ -52,6 +54,11 @@ DECREMENT_TOL = 1e-3  # converged at once when the Newton decrement predicts les
 LINE_SEARCH_MAX = 2.0  # the line search's doubling of a full Newton step goes this far at most
 
 STALL_ITERS = 5  # the polish gives up after this many barrier-limited iterations in a row that gain < tol
+
+#: With ``excess_tol`` (the atlas's joint polish), this many iterations in a row that each gain less than excess_tol
+#: of the energy's excess stop the polish, whatever the step length and the scaffold's weight: on cow the 5
+#: barrier-limited iterations after the first such one gained 2e-5 of energy 1.00094 together (BENCHMARKS §18)
+EXCESS_STALL_ITERS = 2
 
 class HessianPattern:
     """Sparsity pattern of the surface's (2n,2n) Hessian, built once; ``matrix(vals)`` sums per-face blocks.
@@ -317,7 +324,7 @@ class Polish:
         self.x = uv.copy()
         self.hist: list[float] = []
         self.fac, self.refactorizations, self.it, self.converged, self.stop = None, 0, 0, False, "iteration cap"
-        self.small = 0
+        self.small = self.small_excess = 0
         self.max_iters = max_iters
         self.done = False
         self._H_last = self._parked = self.pat = None
@@ -404,7 +411,14 @@ class Polish:
                 self.bar.update(1)
             self.Es = Es1
             gain = self.hist[-1] - Es1
-            if gain / self.hist[-1] < tol or (excess_tol > 0 and gain < excess_tol * (Es1 - 4.0)):
+            low_excess = excess_tol > 0 and gain < excess_tol * (Es1 - 4.0)
+            self.small_excess = self.small_excess + 1 if low_excess else 0
+            if low_excess and self.small_excess >= EXCESS_STALL_ITERS:
+                self.hist.append(Es1)
+                self.converged = True
+                self.stop = f"converged (gains below {excess_tol:g} of the excess over an isometry)"
+                break
+            if gain / self.hist[-1] < tol or low_excess:
                 self.small += 1  # converged only after an uncut step with the lightest scaffold ("Stopping")
                 if t >= full_step and self.w_scaf > self.w_min:
                     self.w_scaf = self.w_min
