@@ -6,6 +6,8 @@ Meshes (generated here from what the repo has; written to a temporary OBJ first)
   camelhead_up    camelhead.off upsampled (strongly curved disk)
   beetle_up       beetle.off upsampled (10 holes; 316k vertices: the slowest, run it with --only beetle_up)
   cylinder_noisy  datasets.cylinder_with_holes at ~200k vertices, scanner noise 0.1 x the mean edge length
+  cylinder_noisy02  the same with noise 0.2 x the mean edge length (the top of issue 17's range; its conformal
+                  layout has 7 flipped faces)
   demo_up         the demo's noisy scan-like part (datasets.noisy_scan_part) generated at ~200k vertices
 
 Each run is a fresh process (its own peak RSS): heatparam = ``heatparam.unwrap.unwrap_file`` (load, default options,
@@ -64,7 +66,7 @@ print(json.dumps({"seconds": t1 - t0, "peak_mb": peak_mb(), "iso": s["iso_mean"]
                   "crossings": s["boundary_crossings"]}))
 """
 
-NAMES = ["halftunnel_up", "camelhead_up", "cylinder_noisy", "demo_up", "beetle_up"]
+NAMES = ["halftunnel_up", "camelhead_up", "cylinder_noisy", "cylinder_noisy02", "demo_up", "beetle_up"]
 
 
 def _upsampled(name: str, target: int = 150_000):
@@ -83,10 +85,11 @@ def make(name: str) -> tuple[np.ndarray, np.ndarray]:
 
     if name.endswith("_up") and name != "demo_up":
         return _upsampled(name[:-3] + ".off")
-    if name == "cylinder_noisy":
+    if name.startswith("cylinder_noisy"):
         s = datasets.cylinder_with_holes(h=0.045 * np.sqrt(2101 / 200_000))
         h = float(np.mean(np.linalg.norm(s.V[s.F[:, 1]] - s.V[s.F[:, 0]], axis=1)))
-        return s.V + 0.1 * h * np.random.default_rng(0).standard_normal(s.V.shape), s.F
+        noise = 0.2 if name == "cylinder_noisy02" else 0.1
+        return s.V + noise * h * np.random.default_rng(0).standard_normal(s.V.shape), s.F
     s = datasets.noisy_scan_part(h=0.03 * np.sqrt(4800 / 200_000))
     return s.V, s.F
 

@@ -306,7 +306,10 @@ def test_thin_limbs_with_slivers_fall_back_to_tutte(tmp_path, limbs):
 
     r = json.loads(rep.read_text())
     start = r["method"]["refine"]["start"]
-    assert start["layout"] == "tutte" and "conformal_failed" in start and "mds_rejected" in start
+    assert start["layout"] == "tutte" and "conformal_failed" in start
+    # MDS is no start either: non-finite (degenerate faces) or, since the operators keep every intrinsic triangle
+    # valid (operators._consistent_lengths), folded beyond repair
+    assert "mds_rejected" in start or (start["flips"] > 0 and not start["repair"]["repaired"])
     _, _, UV, _ = formats.load_uv_obj(out)
     assert np.isfinite(UV).all()
     assert r["metrics"]["flips"] == 0 and r["metrics"]["boundary_crossings"] == 0

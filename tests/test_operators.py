@@ -55,3 +55,20 @@ def test_mollification_handles_zero_area_faces():
 def test_mollification_noop_on_good_mesh(disk):
     op = build_operators(*disk)
     assert op.mollify_eps == 0.0
+
+
+def test_lengths_of_a_flipped_triangulation_stay_valid_when_exact_ones_would_break_a_needle():
+    """The exact lengths of the input's edges and the intrinsic Delaunay triangulation's own (snapped) lengths differ
+    by round-off; on a needle whose margin is smaller, mixing them makes a triangle of zero area (NaN cotangents:
+    the heat factorization of a noisy 182k scan failed). Such a triangle's edges keep the triangulation's lengths."""
+    from heatparam.operators import _consistent_lengths, _restore_lengths, intrinsic_areas
+
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    # lengths of the edge opposite each corner; edge 0-2 is shared: face 0's second, face 1's third
+    l1 = np.array([[1.0, 1.999999, 1.0], [1.2, 1.2, 1.999999]])  # the triangulation's own: valid, face 0 a needle
+    l0 = np.array([[1.0, 2.000001, 1.0], [1.2, 1.2, 2.000001]])  # "exact": the needle's long edge a hair too long
+    assert (intrinsic_areas(_restore_lengths(F, l0, F, l1)) == 0).any()  # the failure this guards against
+    fixed = _consistent_lengths(F, l0, F, l1)
+    assert (intrinsic_areas(fixed) > 0).all()
+    np.testing.assert_array_equal(fixed, l1)  # edge 0-2 from the triangulation, in both faces ...
+    assert np.array_equal(_consistent_lengths(F, l1, F, l1 * (1 + 1e-9)), l1)  # ... exact lengths wherever valid

@@ -106,7 +106,11 @@ class Factor:
             f.perm, f.iparm[4] = np.zeros(self.n, dtype=np.int32), 2
         else:
             f.perm, f.iparm[4] = ordering[0], 1
-        f.factorize(self._T)
+        try:
+            f.factorize(self._T)
+        except pypardiso.pardiso_wrapper.PyPardisoError as exc:  # e.g. -4, a zero pivot: NaN in the matrix
+            f.free_memory(everything=True)
+            raise np.linalg.LinAlgError(f"PARDISO could not factorize the matrix ({exc})") from None
         return f
 
     def refactor(self, A: sp.spmatrix, upper: bool = False) -> Factor:

@@ -194,6 +194,50 @@ def test_large_mesh_whose_conformal_layout_folds_keeps_the_heat_stage(monkeypatc
     assert "geodesics" in rep["timings_s"] and not rep["method"]["geodesics"].startswith("skipped")
 
 
+def _noisier_cylinder_with_holes():
+    """A cylinder patch with holes and scanner noise of 0.3 × the edge length (4.9k vertices): its conformal layout
+    has 7 flipped faces, which the repair fixes."""
+    s = datasets.cylinder_with_holes(h=0.045 * np.sqrt(2101 / 5000))
+    h = float(np.mean(np.linalg.norm(s.V[s.F[:, 1]] - s.V[s.F[:, 0]], axis=1)))
+    return s.V + 0.3 * h * np.random.default_rng(0).standard_normal(s.V.shape), s.F
+
+
+def test_large_mesh_whose_conformal_layout_is_repaired_skips_the_heat_stage(monkeypatch):
+    """A conformal layout with a few flipped faces, repaired as MDS's are, is a bijective start: counted as large,
+    the heat stage is skipped (a 182k-vertex such part: 274 -> 84 s, BENCHMARKS §18), and the map has the quality of
+    the one computed with it."""
+    from heatparam.pipeline import shortcuts
+
+    V, F = _noisier_cylinder_with_holes()
+    monkeypatch.setattr(shortcuts, "CONFORMAL_START_MIN_VERTICES", 1000)
+    _, rf = parameterize(V, F, seams="none")
+    _, ra = parameterize(V, F, seams="none", mds_start="always")
+    st = rf["method"]["refine"]["start"]
+    assert st["conformal_flips"] > 0 and st["conformal_repair"]["repaired"] and st["layout"] == "conformal"
+    assert "flipped faces repaired" in rf["method"]["geodesics"] and "geodesics" not in rf["timings_s"]
+    assert rf["metrics"]["flips"] == 0 and rf["metrics"]["boundary_crossings"] == 0
+    assert rf["metrics"]["iso_mean"] == pytest.approx(ra["metrics"]["iso_mean"], abs=1e-4)
+
+
+def test_a_failed_optional_heat_stage_falls_back_to_the_other_starts(monkeypatch):
+    """The heat stage only offers a start (mds_start auto): when it fails numerically (a noisy 182k scan's fill
+    surface once made NaN cotangents, PARDISO -4) the map starts from the conformal layout, with a warning; asked
+    for (mds_start='always'), its failure is the answer."""
+    from heatparam.pipeline import heat_stage
+
+    def failing(*args, **kwargs):
+        raise HeatparamError("the heat method's systems could not be factorized (test)")
+
+    V, F = _noisier_cylinder_with_holes()
+    monkeypatch.setattr(heat_stage, "geodesic_layout", failing)
+    _, rep = parameterize(V, F, seams="none")
+    assert rep["method"]["geodesics"].startswith("skipped: the heat stage failed")
+    assert any("heat stage failed" in w for w in rep["warnings"])
+    assert rep["metrics"]["flips"] == 0 and rep["method"]["refine"]["start"]["layout"] == "conformal"
+    with pytest.raises(HeatparamError, match="could not be factorized"):
+        parameterize(V, F, seams="none", mds_start="always")
+
+
 def test_noisy_developable_scan_starts_from_the_lower_energy_layout():
     """Scanner-like noise (0.2 × the edge length on every coordinate): the heat stage runs (the conformal layout is
     not near-isometric), both candidates are bijective and the refinement starts from the lower-energy one. LSCM

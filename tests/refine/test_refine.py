@@ -667,6 +667,27 @@ def test_refine_starts_from_a_repaired_mds_layout_when_it_is_better():
     assert rep["bijective"]
 
 
+def test_a_conformal_layout_with_a_few_flips_is_repaired_into_a_start():
+    """A cylinder patch with holes and scanner noise (0.2 × the edge length): its conformal layout has a flipped
+    face; repaired as MDS's would be, it is a bijective start with the boundary untouched, and the refinement can
+    start from it without MDS."""
+    s = datasets.cylinder_with_holes(h=0.045 * np.sqrt(2101 / 5000))
+    h = float(np.mean(np.linalg.norm(s.V[s.F[:, 1]] - s.V[s.F[:, 0]], axis=1)))
+    V = s.V + 0.2 * h * np.random.default_rng(0).standard_normal(s.V.shape)
+    g, _ = energy.surface_gradients(V, s.F)
+    raw = conformal_layout(V, s.F)
+    flips = int((energy.det(energy.jacobians(raw, s.F, g)) <= 0).sum())
+    assert flips > 0  # the case this test is about
+    st = start.lscm_start(V, s.F)
+    assert st.flips == flips and st.repair["repaired"] and st.energy is not None
+    assert start.bijectivity(st.uv, s.F, g) == (0, 0)
+    bnd = np.concatenate(tutte.build_disk(V, s.F).loops)
+    assert np.array_equal(st.uv[bnd], raw[bnd])  # the boundary is locked
+    x, rep = refine.refine(V, s.F, None)
+    assert rep["start"]["layout"] == "conformal" and rep["start"]["conformal_repair"]["repaired"]
+    assert rep["bijective"]
+
+
 def test_a_step_that_leaves_boundaries_touching_is_undone(monkeypatch):
     """When the scaffold cannot be built around the layout a step produced (boundaries touch: round-off beside the
     barrier), the polish stops with the layout before that step, the last one a scaffold was built around."""

@@ -21,14 +21,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from heatparam.errors import TopologyError
+from heatparam.errors import HeatparamError, TopologyError
 from heatparam.heat import check_time_step
 from heatparam.memory import require
 from heatparam.options import Options, make_options
 from heatparam.pipeline.heat_stage import FillSurface, decide_fill, mds_map
 from heatparam.pipeline.report import Flat, Result, build_report, map_metrics, method_report
 from heatparam.pipeline.seams import seam_pause, seams_stage
-from heatparam.pipeline.shortcuts import start_checks
+from heatparam.pipeline.shortcuts import heat_stage_optional, start_checks
 from heatparam.pipeline.surface import Surface
 from heatparam.progress import Progress
 
@@ -164,7 +164,19 @@ def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = Fals
             rf = Refinement(surface.V, surface.F, None, params, prog, surface.conformal, check.lscm,
                             surface.gradients(), starts, pause_excess, pause_coarse)
         return _refined(surface, opts, prog, rf, None, check.skipped, fill, None, [])
-    m = mds_map(surface, opts, prog, fill_used, fill_reason)
+    try:
+        m = mds_map(surface, opts, prog, fill_used, fill_reason)
+    except HeatparamError as exc:
+        if opts.refine == "none" or opts.mds_start != "auto" or not heat_stage_optional(opts):
+            raise  # the heat stage was asked for (or is the map itself): its failure is the answer
+        # otherwise it only offers a start: the refinement starts from the conformal layout or Tutte
+        why = (f"skipped: the heat stage failed ({exc}); the refinement starts from the conformal layout, or Tutte "
+               "when it is not bijective")
+        with prog.stage("refine"):
+            rf = Refinement(surface.V, surface.F, None, params, prog, surface.conformal, check.lscm,
+                            surface.gradients(), starts, pause_excess, pause_coarse)
+        return _refined(surface, opts, prog, rf, None, why, {"used": False, "reason": fill_reason, "skipped": why},
+                        None, [f"the heat stage failed ({exc}): the map starts without MDS"])
     if opts.refine == "none":
         summary = map_metrics(surface.V, surface.F, m.uv, prog, m.layout)
         method = method_report(opts, m.layout, None, m.fill, {"method": opts.refine})

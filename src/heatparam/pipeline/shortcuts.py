@@ -8,8 +8,9 @@ The heat stage (fill, geodesics, MDS) is not computed when
 (b) the mesh has at least ``CONFORMAL_START_MIN_VERTICES`` vertices and the conformal layout is bijective: measured
     on every such part, the polish from it reached the same map quality (iso mean ±5e-6) in less total time than
     with the heat stage, whose layout had the lower energy on the noisy ones but no fewer Newton iterations
-    (``options.CONFORMAL_START_MIN_VERTICES``); the maps differ only within the polish's tolerance. Where the
-    conformal layout is not bijective the heat stage runs: MDS may be the only bijective start;
+    (``options.CONFORMAL_START_MIN_VERTICES``); the maps differ only within the polish's tolerance. A conformal
+    layout with a few flipped faces counts once they are repaired (``refine.start.repaired_layout``, as MDS's are).
+    Where it is not bijective the heat stage runs: MDS may be the only bijective start;
 (c) the surface is the seams stage's cut-open mesh: it is not filled (a fill would close the seams), geodesics run
     around the slits, and MDS lost to LSCM or Tutte on every seamed map measured (beetle: 4106 flipped faces;
     halftunnel: energy 1.435 vs LSCM 1.218; a 200k mask scan: not bijective). The same map.
@@ -60,7 +61,8 @@ def start_checks(surface: Surface, opts, prog: Progress, seamed: bool = False) -
                                  "computes them)"))
     if lscm.energy is None or len(surface.V) < CONFORMAL_START_MIN_VERTICES:
         return StartCheck(lscm, None)
-    return StartCheck(lscm, (f"skipped: the conformal layout is bijective (energy {lscm.energy:.4f}) on a mesh of "
-                             f">= {CONFORMAL_START_MIN_VERTICES} vertices, where the polish from it reached the same "
-                             "map quality in less time than with the heat stage on every part measured "
+    fixed = f"{lscm.flips} flipped faces repaired, " if lscm.repair is not None else ""
+    return StartCheck(lscm, (f"skipped: the conformal layout is bijective ({fixed}energy {lscm.energy:.4f}) on a "
+                             f"mesh of >= {CONFORMAL_START_MIN_VERTICES} vertices, where the polish from it reached "
+                             "the same map quality in less time than with the heat stage on every part measured "
                              "(mds_start='always' computes them)"))

@@ -286,7 +286,7 @@ def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[n
     def fine(y: np.ndarray | None) -> Polish:
         ftol = tol
         if y is not None:
-            if ml["coarse_polish"]["converged"]:
+            if ml["coarse_polish"]["converged"] or ml["coarse_polish"]["stop"] == "stalled at the barrier":
                 ftol *= MULTILEVEL_FINE_TOL_FACTOR
             ml["fine_tol"] = ftol
         # open-ended: Newton stops when converged (5-50 iterations measured), far below the cap
