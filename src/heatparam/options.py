@@ -116,7 +116,7 @@ OPTIONS: tuple[Option, ...] = (
     Option("stress_sources", 32, "int", "number of sources for the sampled Eq. 1 stress in the report",
            low=1, high=10_000),
     Option("refine", "sd", "choice", "sd = a bijective start (the lower-energy bijective one of the MDS layout and "
-           "the conformal one (spectral, no pins), an MDS layout with <= 0.1% of its triangles flipped repaired "
+           "the conformal one (spectral, no pins), either with <= 0.1% of its triangles flipped repaired "
            "first; else Tutte) polished by projected-Newton symmetric Dirichlet at true scale inside a "
            "re-triangulated scaffold, so no triangle flips and no boundary crosses another (docs/refine.md); "
            "none = the paper's raw MDS map",
@@ -124,9 +124,10 @@ OPTIONS: tuple[Option, ...] = (
     Option("mds_start", "auto", "choice", "with refine sd: auto skips the fill, the heat geodesics and MDS (a) when "
            "the conformal layout is already bijective and within {ISOMETRIC_START_EXCESS:.1%} of an isometry in energy "
            "(developable parts: the same map, faster), (b) on meshes of >= {CONFORMAL_START_MIN_VERTICES} vertices "
-           "whenever the conformal layout is bijective (measured: the same map quality in less time; BENCHMARKS "
-           "§13); the report's stress_rel_rms is then null; never when fill, geodesics, landmarks or stress "
-           "is set explicitly. "
+           "whenever the conformal layout is bijective, a few flips repaired (measured: the same map quality in "
+           "less time; BENCHMARKS §13, §18), (d) there, for the seams stage's trial map without seams when it is not "
+           "(MDS folded on every such part measured; §18); the report's stress_rel_rms is then null; never when "
+           "fill, geodesics, landmarks or stress is set explicitly. "
            "always = compute them as a start candidate anyway (in an atlas: every chart through the pipeline "
            "instead of the charts' joint polish); never = skip them (the conformal layout or Tutte starts; an "
            "atlas's charts are polished together from LSCM unless this is always: BENCHMARKS §10)",

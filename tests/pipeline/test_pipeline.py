@@ -194,6 +194,22 @@ def test_large_mesh_whose_conformal_layout_folds_keeps_the_heat_stage(monkeypatc
     assert "geodesics" in rep["timings_s"] and not rep["method"]["geodesics"].startswith("skipped")
 
 
+def test_seam_trial_on_a_large_mesh_without_a_conformal_start_skips_the_heat_stage(monkeypatch, halftunnel):
+    """Case (d): halftunnel counted as large, seams auto: its map without seams is the seams stage's trial and its
+    conformal layout is not bijective even repaired, so the trial skips the heat stage (MDS folded there too) and
+    starts from Tutte; the kept (cut) map is bit for bit the one computed with the heat stage."""
+    from heatparam.pipeline import shortcuts
+
+    V, F = halftunnel
+    monkeypatch.setattr(shortcuts, "CONFORMAL_START_MIN_VERTICES", 100)
+    fast, rf = parameterize(V, F)
+    monkeypatch.setattr(shortcuts, "SKIP_HEAT_IN_SEAM_TRIALS", False)
+    full, ra = parameterize(V, F)
+    assert rf["method"]["seams"]["used"] and ra["method"]["seams"]["used"]
+    assert "geodesics" not in rf["timings_s"] and "geodesics" in ra["timings_s"]
+    assert np.array_equal(fast, full)
+
+
 def _noisier_cylinder_with_holes():
     """A cylinder patch with holes and scanner noise of 0.3 × the edge length (4.9k vertices): its conformal layout
     has 7 flipped faces, which the repair fixes."""

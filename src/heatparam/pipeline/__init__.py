@@ -155,7 +155,7 @@ def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = Fals
 
     with prog.stage("fill decision"):
         fill_used, fill_reason = decide_fill(opts, surface, seamed)
-    check = start_checks(surface, opts, prog, seamed)
+    check = start_checks(surface, opts, prog, seamed, trial=pause_excess > 0)
     params = RefineParams.from_options(opts)
     if check.skipped is not None:
         fill = {"used": False, "reason": fill_reason, "skipped": check.skipped} if fill_used else \

@@ -13,9 +13,17 @@ The heat stage (fill, geodesics, MDS) is not computed when
     Where it is not bijective the heat stage runs: MDS may be the only bijective start;
 (c) the surface is the seams stage's cut-open mesh: it is not filled (a fill would close the seams), geodesics run
     around the slits, and MDS lost to LSCM or Tutte on every seamed map measured (beetle: 4106 flipped faces;
-    halftunnel: energy 1.435 vs LSCM 1.218; a 200k mask scan: not bijective). The same map.
+    halftunnel: energy 1.435 vs LSCM 1.218; a 200k mask scan: not bijective). The same map;
+(d) the flattening is the seams stage's trial without seams (``seams auto`` on a mesh with holes) of at least
+    ``CONFORMAL_START_MIN_VERTICES`` vertices, and the conformal layout is not bijective even after the repair of
+    a few flips: on both such parts measured the MDS layout folded too (halftunnel upsampled to 201k: 52,925 flipped
+    faces; a cylinder with holes and noise 0.3 × the edge at 182k: 249, beyond repair), the trial started from Tutte
+    either way and the kept map was the same, so the heat stage (~30 s there) is skipped: 67-81 → 58 s and
+    254 → 247 s, peak 1.65 → 1.23 GB and 1.55 → 1.24 GB (BENCHMARKS §18e). Where the trial's map is kept it has
+    started from Tutte; ``mds_start='always'`` computes the heat stage.
 
-Tests compare (a) and (c) with ``mds_start="always"`` bit for bit, (b) by map quality.
+Tests compare (a) and (c) with ``mds_start="always"`` bit for bit, (b) by map quality, (d) with
+``SKIP_HEAT_IN_SEAM_TRIALS`` off bit for bit.
 """
 
 from __future__ import annotations
@@ -26,6 +34,9 @@ from heatparam.options import CONFORMAL_START_MIN_VERTICES, ISOMETRIC_START_EXCE
 from heatparam.pipeline.surface import Surface
 from heatparam.progress import Progress
 from heatparam.refine.start import LscmStart, lscm_start
+
+#: case (d) of the module docstring (False: the heat stage runs for such trials, as before 2026-12-03)
+SKIP_HEAT_IN_SEAM_TRIALS = True
 
 
 class StartCheck(NamedTuple):
@@ -41,9 +52,10 @@ def heat_stage_optional(opts) -> bool:
     return opts.fill == "auto" and opts.geodesics == "auto" and opts.stress == "none" and opts.landmarks == 0
 
 
-def start_checks(surface: Surface, opts, prog: Progress, seamed: bool = False) -> StartCheck:
-    """Whether the fill, geodesics and MDS can be skipped (cases (a), (b) and (c) of the module docstring;
-    ``seamed``: the surface is the seams stage's cut-open mesh)."""
+def start_checks(surface: Surface, opts, prog: Progress, seamed: bool = False, trial: bool = False) -> StartCheck:
+    """Whether the fill, geodesics and MDS can be skipped (cases (a)-(d) of the module docstring; ``seamed``: the
+    surface is the seams stage's cut-open mesh; ``trial``: the flattening is the seams stage's trial without seams,
+    which may pause and be dropped)."""
     if opts.refine == "none" or opts.mds_start == "always" or not heat_stage_optional(opts):
         return StartCheck(None, None)
     with prog.stage("start check"):
@@ -59,7 +71,13 @@ def start_checks(surface: Surface, opts, prog: Progress, seamed: bool = False) -
         return StartCheck(lscm, ("skipped: the surface is cut open along seams and not filled, so geodesics run "
                                  "around the slits and the MDS layout folds across them (mds_start='always' "
                                  "computes them)"))
-    if lscm.energy is None or len(surface.V) < CONFORMAL_START_MIN_VERTICES:
+    if len(surface.V) < CONFORMAL_START_MIN_VERTICES:
+        return StartCheck(lscm, None)
+    if lscm.energy is None:
+        if trial and SKIP_HEAT_IN_SEAM_TRIALS:
+            return StartCheck(lscm, ("skipped: the map without seams is the seams stage's trial on a large mesh whose "
+                                     "conformal layout is not bijective even repaired, where MDS folded too on every "
+                                     "part measured; it starts from Tutte (mds_start='always' computes them)"))
         return StartCheck(lscm, None)
     fixed = f"{lscm.flips} flipped faces repaired, " if lscm.repair is not None else ""
     return StartCheck(lscm, (f"skipped: the conformal layout is bijective ({fixed}energy {lscm.energy:.4f}) on a "
