@@ -18,7 +18,7 @@ The heat stage (fill, geodesics, MDS) is not computed when
     ``CONFORMAL_START_MIN_VERTICES`` vertices, and the conformal layout is not bijective even after the repair of
     a few flips: on both such parts measured the MDS layout folded too (halftunnel upsampled to 201k: 52,925 flipped
     faces; a cylinder with holes and noise 0.3 × the edge at 182k: 249, beyond repair), the trial started from Tutte
-    either way and the kept map was the same, so the heat stage (~30 s there) is skipped: 67-81 → 58 s and
+    either way and the kept map was the same, so the heat stage (22-31 s there) is skipped: 67-81 → 58 s and
     254 → 247 s, peak 1.65 → 1.23 GB and 1.55 → 1.24 GB (BENCHMARKS §18e). Where the trial's map is kept it has
     started from Tutte; ``mds_start='always'`` computes the heat stage.
 
