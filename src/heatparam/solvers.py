@@ -139,7 +139,8 @@ class Factor:
                 return self
             del T
             # this factor is replaced: free MKL's copy of it before the new one is made, not after (beetle
-            # upsampled to 311k, the cut mesh's fine level: factors of ~0.5 GB; peak RSS 2321 -> see BENCHMARKS §18)
+            # upsampled to 311k, the cut mesh's fine level: factors of ~0.5 GB; peak RSS in process 2321 -> 1873 MB,
+            # BENCHMARKS §18b)
             ordering = self.ordering
             self.free()
             return Factor(U, self.backend, upper=True, ordering=ordering)

@@ -210,21 +210,13 @@ def test_seam_trial_on_a_large_mesh_without_a_conformal_start_skips_the_heat_sta
     assert np.array_equal(fast, full)
 
 
-def _noisier_cylinder_with_holes():
-    """A cylinder patch with holes and scanner noise of 0.3 × the edge length (4.9k vertices): its conformal layout
-    has 7 flipped faces, which the repair fixes."""
-    s = datasets.cylinder_with_holes(h=0.045 * np.sqrt(2101 / 5000))
-    h = float(np.mean(np.linalg.norm(s.V[s.F[:, 1]] - s.V[s.F[:, 0]], axis=1)))
-    return s.V + 0.3 * h * np.random.default_rng(0).standard_normal(s.V.shape), s.F
-
-
 def test_large_mesh_whose_conformal_layout_is_repaired_skips_the_heat_stage(monkeypatch):
     """A conformal layout with a few flipped faces, repaired as MDS's are, is a bijective start: counted as large,
     the heat stage is skipped (a 182k-vertex such part: 274 -> 84 s, BENCHMARKS §18), and the map has the quality of
     the one computed with it."""
     from heatparam.pipeline import shortcuts
 
-    V, F = _noisier_cylinder_with_holes()
+    V, F = _noisy_cylinder_with_holes(0.3, vertices=5000)
     monkeypatch.setattr(shortcuts, "CONFORMAL_START_MIN_VERTICES", 1000)
     _, rf = parameterize(V, F, seams="none")
     _, ra = parameterize(V, F, seams="none", mds_start="always")
@@ -244,7 +236,7 @@ def test_a_failed_optional_heat_stage_falls_back_to_the_other_starts(monkeypatch
     def failing(*args, **kwargs):
         raise HeatparamError("the heat method's systems could not be factorized (test)")
 
-    V, F = _noisier_cylinder_with_holes()
+    V, F = _noisy_cylinder_with_holes(0.3, vertices=5000)
     monkeypatch.setattr(heat_stage, "geodesic_layout", failing)
     _, rep = parameterize(V, F, seams="none")
     assert rep["method"]["geodesics"].startswith("skipped: the heat stage failed")
@@ -354,9 +346,16 @@ def test_seams_auto_leaves_near_isometric_parts_with_holes_uncut():
     assert datasets.layout_error(h.uv, sh.uv_true[h.uv_vertex]) < 1e-3
 
 
-def _noisy_cylinder_with_holes(noise: float = 0.15):
-    s = datasets.cylinder_with_holes()
-    return s.V + noise * 0.045 * np.random.default_rng(0).standard_normal(s.V.shape), s.F
+def _noisy_cylinder_with_holes(noise: float = 0.15, vertices: int | None = None):
+    """The cylinder patch with holes plus Gaussian noise of ``noise`` × the edge length; with ``vertices``, made at
+    about that many vertices (noise × the measured mean edge; 0.3 at 5000: 4.9k vertices, 7 flipped faces in the
+    conformal layout, which the repair fixes)."""
+    if vertices is None:
+        s, h = datasets.cylinder_with_holes(), 0.045
+    else:
+        s = datasets.cylinder_with_holes(h=0.045 * np.sqrt(2101 / vertices))
+        h = float(np.mean(np.linalg.norm(s.V[s.F[:, 1]] - s.V[s.F[:, 0]], axis=1)))
+    return s.V + noise * h * np.random.default_rng(0).standard_normal(s.V.shape), s.F
 
 
 def test_seams_not_tried_where_no_cut_map_could_be_kept(monkeypatch):

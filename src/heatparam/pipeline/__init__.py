@@ -157,13 +157,18 @@ def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = Fals
         fill_used, fill_reason = decide_fill(opts, surface, seamed)
     check = start_checks(surface, opts, prog, seamed, trial=pause_excess > 0)
     params = RefineParams.from_options(opts)
-    if check.skipped is not None:
-        fill = {"used": False, "reason": fill_reason, "skipped": check.skipped} if fill_used else \
-            {"used": False, "reason": fill_reason}
+
+    def without_heat_stage(why: str, fill: dict, warnings: list[str]) -> Flat:
+        """The refinement from the conformal layout or Tutte, the heat stage not computed (``why``)."""
         with prog.stage("refine"):
             rf = Refinement(surface.V, surface.F, None, params, prog, surface.conformal, check.lscm,
                             surface.gradients(), starts, pause_excess, pause_coarse)
-        return _refined(surface, opts, prog, rf, None, check.skipped, fill, None, [])
+        return _refined(surface, opts, prog, rf, None, why, fill, None, warnings)
+
+    if check.skipped is not None:
+        fill = {"used": False, "reason": fill_reason, "skipped": check.skipped} if fill_used else \
+            {"used": False, "reason": fill_reason}
+        return without_heat_stage(check.skipped, fill, [])
     try:
         m = mds_map(surface, opts, prog, fill_used, fill_reason)
     except HeatparamError as exc:
@@ -172,11 +177,8 @@ def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = Fals
         # otherwise it only offers a start: the refinement starts from the conformal layout or Tutte
         why = (f"skipped: the heat stage failed ({exc}); the refinement starts from the conformal layout, or Tutte "
                "when it is not bijective")
-        with prog.stage("refine"):
-            rf = Refinement(surface.V, surface.F, None, params, prog, surface.conformal, check.lscm,
-                            surface.gradients(), starts, pause_excess, pause_coarse)
-        return _refined(surface, opts, prog, rf, None, why, {"used": False, "reason": fill_reason, "skipped": why},
-                        None, [f"the heat stage failed ({exc}): the map starts without MDS"])
+        return without_heat_stage(why, {"used": False, "reason": fill_reason, "skipped": why},
+                                  [f"the heat stage failed ({exc}): the map starts without MDS"])
     if opts.refine == "none":
         summary = map_metrics(surface.V, surface.F, m.uv, prog, m.layout)
         method = method_report(opts, m.layout, None, m.fill, {"method": opts.refine})
