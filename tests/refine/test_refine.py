@@ -473,6 +473,23 @@ def test_multilevel_paused_at_its_coarse_level_finishes_as_if_never_paused(cap_f
         assert run.report()[key] == ref.report()[key], key
 
 
+def test_fine_level_starts_with_the_scaffold_its_converged_coarse_level_ended_with(cap_from_tutte, monkeypatch):
+    """After a converged coarse level the fine polish starts with the scaffold's weight there (the lightest: a
+    converged polish ends at it), not the stiffest, and so does not spend a Newton iteration only to lighten it:
+    fewer fine iterations than a stiff start, the same minimum."""
+    s, g, area, loops, x0 = cap_from_tutte
+    monkeypatch.setattr(multilevel, "COARSE_MIN", 1500)  # 6863 vertices, 466 on the boundary
+    kw = dict(min_vertices=len(s.V), max_iters=200, tol=1e-6, backend="auto")
+    run, ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
+    assert ml["coarse_polish"]["converged"]
+    assert ml["coarse_polish"]["scaffold_weight"] == pytest.approx(scaffold.SCAFFOLD_WEIGHT_MIN)
+    monkeypatch.setattr(multilevel, "FINE_SCAFFOLD", False)
+    stiff, _ = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
+    assert run.report()["converged"] and stiff.report()["converged"]
+    assert run.it < stiff.it, (run.it, stiff.it)
+    assert run.report()["energy_end"] == pytest.approx(stiff.report()["energy_end"], rel=1e-4)
+
+
 def test_multilevel_coarse_level_not_kept_paused_below_pause_coarse(cap_from_tutte, monkeypatch):
     """A paused coarse level whose map's iso mean is not above ``pause_coarse`` is finished at once: a plain
     :class:`newton.Polish` comes back, the layout of an unpaused multilevel polish."""

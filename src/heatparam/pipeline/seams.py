@@ -215,4 +215,30 @@ def _no_cut_reason(surface: Surface, opts, flat: Flat) -> str | None:
         if flat.summary["bijective"] and iso <= 1 + SEAM_TRY_EXCESS:  # options.SEAM_TRY_EXCESS: nothing to gain
             return (f"the map without seams is bijective and near-isometric (iso mean {iso:.4f}): no cut map could "
                     f"lower it by {SEAM_MIN_GAIN:.0%} (an iso mean is at least 1)")
+        return _noise_bound(flat)
     return None
+
+
+def _noise_bound(flat: Flat) -> str | None:
+    """Why no cut map can be kept although the map without seams is far from an isometry: its coarse level is
+    close to one (None: the bound does not rule the cut out).
+
+    A cut removes the distortion the holes force on the map: a smooth stretch that the coarse level (a subset of
+    the vertices, ``refine.multilevel``) resolves as well as the fine one, so the fine map's iso mean can drop by
+    at most about what the coarse map's can, and that is less than its excess over 1 (a map's iso mean is ≥ 1).
+    Distortion the fine level adds on top (scan noise: a coarse mesh's longer edges carry it less) stays in both
+    maps. So when ``coarse iso mean - 1 < SEAM_MIN_GAIN × fine iso mean`` (the fine one's lowest finished value
+    when paused: :func:`_range`; the coarse one's paused value, an upper bound, when its level paused) the cut-open
+    map cannot be ``SEAM_MIN_GAIN`` better and is not tried. Measured drops of iso mean, coarse → fine level, where
+    both maps were finished or paused (BENCHMARKS.md §19): halftunnel↑50k 0.491 → 0.483, a curved cap with holes
+    and noise 0.2 × edge 0.013 → 0.005, a cylinder with holes and noise 0.2 × edge 0.0001 → 0.00002."""
+    ml = flat.method["refine"].get("multilevel", {})
+    coarse = ml.get("coarse_iso_mean")
+    if not (ml.get("used") and coarse is not None and flat.summary["bijective"]):
+        return None
+    lo = _range(flat)[0]
+    if coarse - 1.0 >= SEAM_MIN_GAIN * lo:
+        return None
+    return (f"the map without seams (iso mean {flat.summary['iso_mean']:.4f}) is within {coarse - 1.0:.2%} of an "
+            f"isometry at its coarse level ({ml['coarse_vertices']} vertices): its distortion is the fine mesh's "
+            f"(noise), not the holes', and no cut map could lower it by {SEAM_MIN_GAIN:.0%}")

@@ -49,6 +49,12 @@ COARSE_MIN_GAIN = 0.5
 #: within ~0.5% of the minimum, and at 1e-6 its last 2 of 7 Newton iterations (camelhead↑182k, ~2.5 s each) gained
 #: < 1e-5 of the energy together and no metric to 4 digits (iso mean 2.05884 at 1e-4 and 1e-6; docs/refine.md)
 MULTILEVEL_FINE_TOL_FACTOR = 100.0
+#: ... and starts with the scaffold weight its coarse level ended with (``newton.Polish``'s ``scaffold_weight``;
+#: the lightest after a converged one), not the stiffest: the stiff weight is for boundaries that still move a lot,
+#: and a converged polish must end at the lightest, so a fine level started stiff spent one more Newton iteration
+#: only to lighten it (BENCHMARKS.md §19). False: start stiff, as before stop 24.
+FINE_SCAFFOLD = True
+
 
 def coarse_vertices(V: np.ndarray, F: np.ndarray, loops: list[np.ndarray], target: int) -> np.ndarray:
     """About ``target`` surface vertices spread evenly in 3D: every boundary vertex (loop order), then per cell of
@@ -207,7 +213,9 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
         """``idle``: seconds this level waited paused (other work), left out of its ``seconds``."""
         seconds = round(time.perf_counter() - t0 - idle, 3)
         xc, cinfo = crun.x, crun.report()
-        out = info | {"coarse_polish": cinfo, "coarse_multilevel": cml}
+        # this level's map's iso mean (paused: where it paused): what the seams stage's coarse gate compares
+        out = info | {"coarse_polish": cinfo, "coarse_multilevel": cml,
+                      "coarse_iso_mean": float(metrics.distortion(V[ids], T, xc)["iso_mean"])}
         e1 = cinfo["energy_end"]
         if cinfo["stop"].startswith("scaffold failed"):  # module constant COARSE_MIN_GAIN's note
             return None, out | {"used": False, "seconds": seconds,
@@ -284,14 +292,16 @@ def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[n
             ml = {"used": False, "reason": f"coarse level failed: {exc}"}
 
     def fine(y: np.ndarray | None) -> Polish:
-        ftol = tol
+        ftol, weight = tol, 1.0
         if y is not None:
             if ml["coarse_polish"]["converged"] or ml["coarse_polish"]["stop"] == "stalled at the barrier":
                 ftol *= MULTILEVEL_FINE_TOL_FACTOR
+                # the boundary is where the coarse polish left it: no stiff scaffold to relax first (FINE_SCAFFOLD)
+                weight = ml["coarse_polish"]["scaffold_weight"] if FINE_SCAFFOLD else 1.0
             ml["fine_tol"] = ftol
         # open-ended: Newton stops when converged (5-50 iterations measured), far below the cap
         return Polish(x if y is None else y, F, g, area, loops, max_iters=max_iters, tol=ftol, backend=backend,
-                      guards=guards)
+                      guards=guards, scaffold_weight=weight)
 
     run: Polish | Levels = fine(y)
     if finish is not None:

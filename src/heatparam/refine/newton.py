@@ -309,18 +309,22 @@ class Polish:
     """:func:`polish` as an object that can pause and go on: ``run(pause_excess)`` iterates until the polish stops
     or (``pause_excess`` > 0) an iteration lowers the energy by less than that fraction of its excess over an
     isometry; ``run()`` again goes on from there, so a paused and resumed polish makes exactly the iterations (and
-    the layout) of one that never paused. ``x`` (n,2) is the current layout, ``done`` whether it has stopped."""
+    the layout) of one that never paused. ``x`` (n,2) is the current layout, ``done`` whether it has stopped.
+    ``scaffold_weight``: the scaffold's starting weight, a fraction of its largest (module docstring) within
+    [``SCAFFOLD_WEIGHT_MIN``, 1]; ``report()`` gives the current one (a fine level starts where its converged
+    coarse level ended: ``multilevel.multilevel_polish``)."""
 
     def __init__(self, uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray], *,
                  max_iters: int = 200, tol: float = 1e-6, backend: str = "auto", bar=None,
-                 guards: np.ndarray | None = None, excess_tol: float = 0.0):
+                 guards: np.ndarray | None = None, excess_tol: float = 0.0, scaffold_weight: float = 1.0):
         t0 = time.perf_counter()
         self.F, self.g, self.loops, self.bar, self.tol, self.excess_tol = F, g, loops, bar, tol, excess_tol
         n = len(uv)
         self.backend = large_system_backend(2 * n, backend, POLISH_PARDISO_MIN_UNKNOWNS)
         self.w_surf = area / area.sum()
-        self.w_scaf = self.w_max = SCAFFOLD_WEIGHT * float(self.w_surf.mean())
+        self.w_max = SCAFFOLD_WEIGHT * float(self.w_surf.mean())
         self.w_min = SCAFFOLD_WEIGHT_MIN * self.w_max
+        self.w_scaf = float(np.clip(scaffold_weight, SCAFFOLD_WEIGHT_MIN, 1.0)) * self.w_max
         self.x = uv.copy()
         self.hist: list[float] = []
         self.fac, self.refactorizations, self.it, self.converged, self.stop = None, 0, 0, False, "iteration cap"
@@ -446,4 +450,5 @@ class Polish:
         return {"iterations": self.it, "converged": self.converged, "stop": self.stop if self.done else "paused",
                 "energy_start": float(hist[0] / 4 if hist else np.nan),
                 "energy_end": float((hist[-1] if self.done or not hist else self.Es) / 4 if hist else np.nan),
-                "factorizations": self.refactorizations, "backend": self.backend, "seconds": round(self.seconds, 3)}
+                "factorizations": self.refactorizations, "backend": self.backend,
+                "scaffold_weight": self.w_scaf / self.w_max, "seconds": round(self.seconds, 3)}
