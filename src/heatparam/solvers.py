@@ -133,7 +133,9 @@ class Factor:
         """
         if self.backend == "pardiso" and A.shape == self._T.shape:
             U = A if upper else _upper(A)
-            T = on_union(self._T, U)
+            same = (U.nnz == self._T.nnz and np.array_equal(U.indptr, self._T.indptr)
+                    and np.array_equal(U.indices, self._T.indices))
+            T = U if same else on_union(self._T, U)  # the same pattern (the polish kept its scaffold): as it is
             if T.nnz == self._T.nnz and _pardiso_numeric(self._f, T):
                 self._T = T
                 return self

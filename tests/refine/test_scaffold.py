@@ -4,6 +4,7 @@ scaffold's artificial limit, never past a real contact, and keep every point of 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from heatparam import datasets, metrics
 from heatparam.layout import tutte
@@ -68,3 +69,55 @@ def test_a_step_towards_contact_stops_short_of_it():
     for a in np.linspace(0, t, 25):
         assert metrics.boundary_crossings(uv + a * d, F) == 0
     assert metrics.boundary_crossings(uv + 1.05 * d, F) > 0
+
+
+def test_a_scaffold_holds_while_its_triangles_keep_their_area(monkeypatch):
+    """The polish keeps the last iteration's scaffold (and so the Hessian's pattern) while every triangle keeps
+    ``SCAFFOLD_KEEP`` of its area: it holds for its own layout and a slight squeeze of a hole, not once the hole
+    is squeezed to a tenth of its height (the triangles inside it too), nor when reuse is off."""
+    s, uv, loops, sc = _setup()
+    assert sc.area is not None and (sc.area > 0).all()
+    assert scaffold.scaffold_holds(uv, sc)
+    hole = loops[1]
+    d = np.zeros_like(uv)
+    d[hole, 1] = uv[hole, 1].mean() - uv[hole, 1]  # t = 1 flattens the first hole onto its middle line
+    assert scaffold.scaffold_holds(uv + 0.01 * d, sc)
+    assert not scaffold.scaffold_holds(uv + 0.9 * d, sc)
+    monkeypatch.setattr(scaffold, "SCAFFOLD_KEEP", 0.0)
+    assert not scaffold.scaffold_holds(uv, sc)
+
+
+def test_polish_keeps_its_scaffold_and_so_the_factors_analysis(monkeypatch):
+    """camelhead (one smooth border) near its minimum, as a fine level after its coarse one (``keep_scaffold``, as
+    ``multilevel`` asks of such a level): the polish keeps the scaffold on most iterations (re-triangulated on
+    every one when reuse is off) and so the Hessian's pattern: PARDISO refactorizes in place (no new analysis);
+    the same minimum either way."""
+    from heatparam import solvers
+    from heatparam.formats import load_mesh
+    from heatparam.layout.conformal import conformal_layout
+    from heatparam.refine import newton
+    from heatparam.refine.energy import surface_gradients
+
+    from conftest import shared_mesh
+
+    V, F = load_mesh(shared_mesh("camelhead.off"))
+    g, area = surface_gradients(V, F)
+    x0, _ = newton.polish(conformal_layout(V, F), F, g, area, boundary_loops(F), tol=1e-3, backend="pardiso")
+    built, fresh_factors = [], []
+    real_build, real_init = newton.build_scaffold, solvers.Factor.__init__
+    monkeypatch.setattr(newton, "build_scaffold", lambda *a: built.append(1) or real_build(*a))
+    monkeypatch.setattr(solvers.Factor, "__init__",
+                        lambda self, *a, **k: fresh_factors.append(1) or real_init(self, *a, **k))
+    runs, default = {}, scaffold.SCAFFOLD_KEEP
+    for keep in (default, 0.0):
+        monkeypatch.setattr(scaffold, "SCAFFOLD_KEEP", keep)
+        built.clear()
+        fresh_factors.clear()
+        run = newton.Polish(x0, F, g, area, boundary_loops(F), tol=1e-7, backend="pardiso", keep_scaffold=True)
+        run.run()
+        runs[keep] = (len(built), len(fresh_factors), run.report())
+    (b_kept, f_kept, rep_kept), (b_fresh, f_fresh, rep_fresh) = runs[default], runs[0.0]
+    assert rep_kept["converged"] and rep_fresh["converged"] and rep_kept["iterations"] >= 3
+    assert b_fresh == rep_fresh["iterations"] and b_kept < rep_kept["iterations"] / 2, (b_kept, rep_kept)
+    assert f_kept == 1 and f_kept <= f_fresh  # one analysis: every later factorization refactorized in place
+    assert rep_kept["energy_end"] == pytest.approx(rep_fresh["energy_end"], rel=1e-6)

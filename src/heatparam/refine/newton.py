@@ -45,6 +45,7 @@ from heatparam.refine.scaffold import (
     Scaffold,
     build_scaffold,
     feasible_step,
+    scaffold_holds,
     scaffold_matrix,
 )
 from heatparam.solvers import Factor, large_system_backend
@@ -217,11 +218,12 @@ class _System(NamedTuple):
 
 
 def _system(x: np.ndarray, J: np.ndarray, Es: float, F: np.ndarray, g: np.ndarray, w_surf: np.ndarray,
-            w_scaf: float, loops: list[np.ndarray], pat: HessianPattern) -> _System:
-    """Scaffold around ``x`` (:func:`build_scaffold`; ValueError when it cannot be built), PSD-projected Hessian
-    and gradient of surface + scaffold energy."""
+            w_scaf: float, loops: list[np.ndarray], pat: HessianPattern, last: Scaffold | None = None) -> _System:
+    """Scaffold around ``x`` (``last``, the previous iteration's, while it holds: ``scaffold.scaffold_holds``;
+    else :func:`build_scaffold`, ValueError when it cannot be built), PSD-projected Hessian and gradient of
+    surface + scaffold energy (each scaffold triangle measured against its shape in ``x``)."""
     n = len(x)
-    sc = build_scaffold(x, loops)
+    sc = last if last is not None and scaffold_holds(x, last) else build_scaffold(x, loops)
     xs = np.vstack([x, sc.box])
     gs = hat_gradients(xs[sc.F])
     ws = np.full(len(sc.F), w_scaf)
@@ -312,12 +314,16 @@ class Polish:
     the layout) of one that never paused. ``x`` (n,2) is the current layout, ``done`` whether it has stopped.
     ``scaffold_weight``: the scaffold's starting weight, a fraction of its largest (module docstring) within
     [``SCAFFOLD_WEIGHT_MIN``, 1]; ``report()`` gives the current one (a fine level starts where its converged
-    coarse level ended: ``multilevel.multilevel_polish``)."""
+    coarse level ended: ``multilevel.multilevel_polish``). ``keep_scaffold``: keep the last iteration's scaffold
+    while it holds (``scaffold.scaffold_holds``; the Hessian's pattern then stays and PARDISO refactorizes without
+    a new analysis) instead of re-triangulating at every iteration: for a fine level, whose layout moves little."""
 
     def __init__(self, uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray], *,
                  max_iters: int = 200, tol: float = 1e-6, backend: str = "auto", bar=None,
-                 guards: np.ndarray | None = None, excess_tol: float = 0.0, scaffold_weight: float = 1.0):
+                 guards: np.ndarray | None = None, excess_tol: float = 0.0, scaffold_weight: float = 1.0,
+                 keep_scaffold: bool = False):
         t0 = time.perf_counter()
+        self.keep_scaffold = keep_scaffold
         self.F, self.g, self.loops, self.bar, self.tol, self.excess_tol = F, g, loops, bar, tol, excess_tol
         n = len(uv)
         self.backend = large_system_backend(2 * n, backend, POLISH_PARDISO_MIN_UNKNOWNS)
@@ -333,6 +339,7 @@ class Polish:
         self.done = False
         self._H_last = self._parked = self.pat = None
         self._ok: tuple | None = None  # (x, J, Es) of the last layout a scaffold was built around
+        self._sc: Scaffold | None = None  # that scaffold, kept while it holds (``scaffold.scaffold_holds``)
         # surface Jacobians and energy of the current layout, carried from step to step
         self.J = jacobians(self.x, F, g)
         self.Es = symmetric_dirichlet(self.J, self.w_surf)[0]
@@ -381,7 +388,8 @@ class Polish:
         while self.it < self.max_iters:
             self.it += 1
             try:
-                sy = _system(self.x, self.J, self.Es, F, g, w_surf, self.w_scaf, self.loops, self.pat)
+                sy = _system(self.x, self.J, self.Es, F, g, w_surf, self.w_scaf, self.loops, self.pat,
+                             self._sc if self.keep_scaffold else None)
             except ValueError as exc:
                 self.stop = f"scaffold failed: {exc}"
                 if self._ok is not None:  # the last step left boundaries touching: keep the layout before it
@@ -389,6 +397,7 @@ class Polish:
                     self.stop += " (after the last step; the layout before it is kept)"
                 break
             self._ok = (self.x, self.J, self.Es)  # a scaffold was built around x: no boundaries touch or cross
+            self._sc = sy.sc
             self.hist.append(self.Es)
             direction = _safe_direction(sy, self.fac, self.backend)
             if isinstance(direction, str):

@@ -63,9 +63,16 @@ def loop_edges(ranges: list[np.ndarray]) -> np.ndarray:
     nxt[last] = [r[0] for r in ranges]
     return np.column_stack([k, nxt])
 
+#: The polish keeps the last iteration's scaffold while each of its triangles keeps at least this fraction of the
+#: signed area it had when triangulated (:func:`scaffold_holds`): the Hessian's sparsity pattern then stays the same
+#: and PARDISO refactorizes without a new analysis (BENCHMARKS.md §19). 0: always re-triangulate.
+SCAFFOLD_KEEP = 0.5
+
+
 class Scaffold(NamedTuple):
     F: np.ndarray  # (s,3) triangles over [surface vertices 0..n-1, then the box corners n..n+3]
     box: np.ndarray  # (4,2) box corners, fixed while this scaffold is used
+    area: np.ndarray | None = None  # (s,) the triangles' signed areas in the layout they were triangulated in
 
 def build_scaffold(uv: np.ndarray, loops: list[np.ndarray]) -> Scaffold:
     """Triangulate (constrained Delaunay, no Steiner points) the box around ``uv`` (n,2) minus the surface.
@@ -89,7 +96,23 @@ def build_scaffold(uv: np.ndarray, loops: list[np.ndarray]) -> Scaffold:
     if len(P2) != len(ids) + 4:
         raise ValueError("the scaffold triangulation added vertices (boundary loops touch or cross)")
     glob = np.concatenate([ids, len(uv) + np.arange(4)])
-    return Scaffold(glob[T], box)
+    sc = Scaffold(glob[T], box)
+    return sc._replace(area=signed_areas(uv, sc))
+
+
+def signed_areas(uv: np.ndarray, sc: Scaffold) -> np.ndarray:
+    """Signed areas (s,) of the scaffold's triangles over the layout ``uv`` (n,2) and its box."""
+    P = np.vstack([uv, sc.box])[sc.F]
+    e1, e2 = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
+    return 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+
+
+def scaffold_holds(uv: np.ndarray, sc: Scaffold) -> bool:
+    """Whether the scaffold ``sc``, triangulated around an earlier layout, still serves the layout ``uv`` (n,2):
+    every triangle positive (then surface and scaffold still tile the box: boundaries neither touch nor cross) and
+    keeping ``SCAFFOLD_KEEP`` of its area at triangulation (no sliver a re-triangulation would have replaced)."""
+    return SCAFFOLD_KEEP > 0 and sc.area is not None and bool(
+        (signed_areas(uv, sc) >= SCAFFOLD_KEEP * sc.area).all())
 
 def scaffold_matrix(F: np.ndarray, blocks: np.ndarray, n: int) -> sp.csc_matrix:
     """Sum the scaffold's 6×6 blocks into a (2n,2n) matrix; rows/columns of the fixed box corners are dropped."""
