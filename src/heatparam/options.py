@@ -133,9 +133,11 @@ OPTIONS: tuple[Option, ...] = (
            "atlas's charts are polished together from LSCM unless this is always: BENCHMARKS §10)",
            MDS_START_MODES, flag="--mds-start"),
     Option("seams", "auto", "choice", "cut holes open to the border along the shortest surface paths: auto = when "
-           "the map without seams is more than {SEAM_TRY_EXCESS:.2%} from an isometry (closer, no cut map "
-           "could gain enough), keep the cut one if it is bijective and lowers the mean isometric distortion by "
-           "{SEAM_MIN_GAIN:.0%} or more (reported, with a warning); holes = always; none = never, one uncut piece",
+           "the map without seams is more than {SEAM_TRY_EXCESS:.2%} from an isometry, and on large meshes its "
+           "coarse level more than {SEAM_MIN_GAIN:.0%} of its iso mean (else no cut map could gain enough: scan "
+           "noise is not the holes' doing), keep the cut one if it is bijective and lowers the mean isometric "
+           "distortion by {SEAM_MIN_GAIN:.0%} or more (reported, with a warning); holes = always; none = never, "
+           "one uncut piece",
            SEAM_MODES, flag="--seams"),
     Option("stress", "none", "choice", "smacof = stress majorization (SMACOF, Guttman transform) of the raw stress "
            "of Eq. 1 on the geodesic distances MDS used, applied to the MDS layout before refine (BENCHMARKS.md "

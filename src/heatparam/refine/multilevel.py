@@ -49,12 +49,13 @@ COARSE_MIN_GAIN = 0.5
 #: within ~0.5% of the minimum, and at 1e-6 its last 2 of 7 Newton iterations (camelhead↑182k, ~2.5 s each) gained
 #: < 1e-5 of the energy together and no metric to 4 digits (iso mean 2.05884 at 1e-4 and 1e-6; docs/refine.md)
 MULTILEVEL_FINE_TOL_FACTOR = 100.0
-#: ... and starts with the scaffold weight its coarse level ended with (``newton.Polish``'s ``scaffold_weight``;
-#: the lightest after a converged one), not the stiffest: the stiff weight is for boundaries that still move a lot,
-#: and a converged polish must end at the lightest, so a fine level started stiff spent one more Newton iteration
-#: only to lighten it; and it keeps its scaffold while that holds (``newton.Polish``'s ``keep_scaffold``: the
-#: Hessian's pattern stays, PARDISO refactorizes without a new analysis; BENCHMARKS.md §19). False: start stiff and
-#: re-triangulate at every iteration, as before stop 24.
+#: After a coarse level that converged (not one that stalled at the barrier: beetle↑311k's cut map took 8 → 10
+#: fine iterations) the fine polish also starts with the scaffold weight that level ended with (``newton.Polish``'s
+#: ``scaffold_weight``: the lightest), not the stiffest, which is for boundaries that still move a lot: a converged
+#: polish must end at the lightest, so a fine level started stiff spent one more Newton iteration only to lighten
+#: it; and it keeps its scaffold while that holds (``newton.Polish``'s ``keep_scaffold``: the Hessian's pattern
+#: stays, PARDISO refactorizes without a new analysis; BENCHMARKS.md §19). False: start stiff and re-triangulate at
+#: every iteration, as before stop 24.
 FINE_SCAFFOLD = True
 
 
@@ -312,10 +313,10 @@ def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[n
         if y is not None:
             if ml["coarse_polish"]["converged"] or ml["coarse_polish"]["stop"] == "stalled at the barrier":
                 ftol *= MULTILEVEL_FINE_TOL_FACTOR
+            if ml["coarse_polish"]["converged"] and FINE_SCAFFOLD:
                 # the boundary is where the coarse polish left it: no stiff scaffold to relax first, and little
-                # for a new scaffold to follow (FINE_SCAFFOLD)
-                weight = ml["coarse_polish"]["scaffold_weight"] if FINE_SCAFFOLD else 1.0
-                keep = FINE_SCAFFOLD
+                # for a new scaffold to follow (not after a stall at the barrier: boundaries there still push)
+                weight, keep = ml["coarse_polish"]["scaffold_weight"], True
             ml["fine_tol"] = ftol
         # open-ended: Newton stops when converged (5-50 iterations measured), far below the cap
         return Polish(x if y is None else y, F, g, area, loops, max_iters=max_iters, tol=ftol, backend=backend,
