@@ -230,7 +230,7 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
         """``idle``: seconds this level waited paused (other work), left out of its ``seconds``."""
         seconds = round(time.perf_counter() - t0 - idle, 3)
         xc, cinfo = crun.x, crun.report()
-        # this level's map's iso mean (paused: where it paused): what the seams stage's coarse gate compares
+        # this level's map's iso mean (paused: where it paused), which the seams stage's noise bound reads
         out = info | {"coarse_polish": cinfo, "coarse_multilevel": cml,
                       "coarse_iso_mean": float(metrics.distortion(V[ids], T, xc)["iso_mean"])}
         e1 = cinfo["energy_end"]

@@ -1,7 +1,8 @@
 """Projected Newton on the symmetric Dirichlet energy plus the scaffold's, from a bijective layout.
 
-The scaffold (``scaffold.build_scaffold``) is rebuilt around the current layout at every iteration and measured
-against its own shape at its start (Jiang et al. 2017); each scaffold triangle weighs up to ``SCAFFOLD_WEIGHT`` ×
+The scaffold (``scaffold.build_scaffold``) is rebuilt around the current layout at every iteration (a fine level
+of coarse-to-fine keeps it while it holds: ``keep_scaffold``) and measured against its own shape at the
+iteration's start (Jiang et al. 2017); each scaffold triangle weighs up to ``SCAFFOLD_WEIGHT`` ×
 the mean surface face, relaxed by ``SCAFFOLD_ADAPT`` after every uncut step: it shapes the Newton direction. The
 line search (:func:`_line_search`, on the surface energy) starts at the largest step that stays bijective: 0.9 ×
 the largest for which no surface triangle flips (Smith & Schaefer 2015), and no farther than the scaffold,
@@ -396,7 +397,7 @@ class Polish:
                     (self.x, self.J, self.Es), self.it = self._ok, self.it - 1
                     self.stop += " (after the last step; the layout before it is kept)"
                 break
-            self._ok = (self.x, self.J, self.Es)  # a scaffold was built around x: no boundaries touch or cross
+            self._ok = (self.x, self.J, self.Es)  # a valid scaffold around x: no boundaries touch or cross
             self._sc = sy.sc
             self.hist.append(self.Es)
             direction = _safe_direction(sy, self.fac, self.backend)

@@ -1,7 +1,8 @@
 """Global bijectivity by a scaffold (Jiang et al. 2017): the rest of a box around the layout, triangulated.
 
 At every iteration of the polish the outside of the outer loop and the inside of every hole are triangulated
-(constrained Delaunay, :func:`build_scaffold`) and join the energy with a small weight; no step lets a surface
+(constrained Delaunay, :func:`build_scaffold`; a fine level keeps the last triangulation while it holds,
+:func:`scaffold_holds`) and join the energy with a small weight; no step lets a surface
 triangle's det J cross zero, nor one of the scaffold it is in, so boundaries slide freely but never cross.
 
 How far a step may go (:func:`feasible_step`): a scaffold triangle flipping is not a crossing — a thin triangle
