@@ -118,7 +118,11 @@ def repair_flips(x: np.ndarray, ref: np.ndarray, F: np.ndarray, g: np.ndarray, l
     first = len(bad)
     if first == 0:
         return x, 0, 0
-    adj = vertex_adjacency(F, n)
+    import igl
+
+    adj = igl.adjacency_matrix(F)  # the mesh's edges, as untangle_flips walks them
+    if adj.shape[0] < n:  # vertices past the last one F uses: no neighbours
+        adj.resize((n, n))
     y, region = x.copy(), np.zeros(n, dtype=bool)
     for r in range(1, REPAIR_ROUNDS + 1):
         grow = np.zeros(n, dtype=bool)
@@ -139,13 +143,6 @@ def repair_flips(x: np.ndarray, ref: np.ndarray, F: np.ndarray, g: np.ndarray, l
             return y, first, r
     return None, first, REPAIR_ROUNDS
 
-
-def vertex_adjacency(F: np.ndarray, n: int) -> sp.csr_matrix:
-    """(n,n) int8 pattern of the mesh's edges, both directions (what :func:`grow_rings` walks)."""
-    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    A = sp.csr_matrix((np.ones(2 * len(E), dtype=np.int8), (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])),
-                      shape=(n, n))
-    return (A > 0).astype(np.int8).tocsr()
 
 def grow_rings(mask: np.ndarray, adj: sp.spmatrix, rings: int) -> np.ndarray:
     """``mask`` (n,) bool grown by ``rings`` rings of the vertex adjacency ``adj`` (n,n), a new array."""
@@ -226,13 +223,17 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
                                   pause_excess=pause_excess if pause_coarse > 0 else 0.0, pause_coarse=pause_coarse)
     info["guards"] = int(len(ears))
 
-    def prolongated(paused: bool, idle: float = 0.0) -> tuple[np.ndarray | None, dict]:
-        """``idle``: seconds this level waited paused (other work), left out of its ``seconds``."""
+    def coarse_iso() -> float:
+        """This level's map's iso mean (paused: where it paused), which the seams stage's noise bound reads."""
+        return float(metrics.distortion(V[ids], T, crun.x)["iso_mean"])
+
+    def prolongated(paused: bool, idle: float = 0.0, iso: float | None = None) -> tuple[np.ndarray | None, dict]:
+        """``idle``: seconds this level waited paused (other work), left out of its ``seconds``; ``iso``: the
+        coarse map's iso mean when already measured."""
         seconds = round(time.perf_counter() - t0 - idle, 3)
         xc, cinfo = crun.x, crun.report()
-        # this level's map's iso mean (paused: where it paused), which the seams stage's noise bound reads
         out = info | {"coarse_polish": cinfo, "coarse_multilevel": cml,
-                      "coarse_iso_mean": float(metrics.distortion(V[ids], T, xc)["iso_mean"])}
+                      "coarse_iso_mean": coarse_iso() if iso is None else iso}
         e1 = cinfo["energy_end"]
         if cinfo["stop"].startswith("scaffold failed"):  # module constant COARSE_MIN_GAIN's note
             return None, out | {"used": False, "seconds": seconds,
@@ -273,9 +274,10 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
 
     if crun.done:
         return *prolongated(False), None
-    if not metrics.distortion(V[ids], T, crun.x)["iso_mean"] > pause_coarse:
+    iso = coarse_iso()
+    if not iso > pause_coarse:
         return *finish(), None
-    y, ml = prolongated(True)
+    y, ml = prolongated(True, iso=iso)
     if y is None:  # no provisional start from the paused level: finish it now, as without pausing
         return *finish(), None
     paused_at = time.perf_counter()
