@@ -40,3 +40,22 @@ def flat_disk(n_ring: int = 24, radius: float = 1.0, seed: int = 0) -> tuple[np.
 @pytest.fixture(scope="session")
 def disk():
     return flat_disk()
+
+
+def excess_cone(rings: int = 8, sectors: int = 64, wave: float = 0.35, k: int = 5):
+    """A cone over a wavy closed curve on the unit sphere (apex angle ~1.6 × 2π), cut open along one generator: a
+    disk whose isometric layout, a sector wider than 2π, overlaps itself."""
+    psi = np.linspace(0.0, 2 * np.pi, sectors + 1)
+    c = np.column_stack([np.cos(psi), np.sin(psi), wave * np.sin(k * psi)])
+    c /= np.linalg.norm(c, axis=1)[:, None]
+    V = np.vstack([np.zeros((1, 3))] + [r * c for r in np.linspace(0, 1, rings + 1)[1:]])
+
+    def idx(i, j):
+        return 1 + i * (sectors + 1) + j
+
+    F = [[0, idx(0, j), idx(0, j + 1)] for j in range(sectors)]
+    for i in range(rings - 1):
+        for j in range(sectors):
+            a, b, cc, d = idx(i, j), idx(i, j + 1), idx(i + 1, j + 1), idx(i + 1, j)
+            F += [[a, d, cc], [a, cc, b]]
+    return V, np.array(F, dtype=np.int64)

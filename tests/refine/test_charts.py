@@ -11,6 +11,8 @@ from heatparam.layout.conformal import conformal_layout
 from heatparam.metrics import true_scale_iso
 from heatparam.refine.charts import arrange, refine_charts
 
+from conftest import excess_cone
+
 
 def _mean_iso(V, F, uv):
     fi, area, det = true_scale_iso(V, F, uv)
@@ -61,9 +63,43 @@ def test_excess_rule_stops_early_at_nearly_the_same_energy():
     groups = [np.flatnonzero(seg.chart == c) for c in range(seg.chart.max() + 1)]
     fl = flatten_charts(topo, groups, seg.glued)
     assert fl.ok(np.inf).all()
-    _, fast = refine_charts(fl.Vl, fl.Fl, fl.uv, fl.vgroup, len(groups))
-    _, full = refine_charts(fl.Vl, fl.Fl, fl.uv, fl.vgroup, len(groups), excess_tol=0.0)
-    assert fast["stop"].startswith("converged (gains below") and full["stop"] == "converged"
-    assert fast["iterations"] < full["iterations"]
-    assert fast["flips"] == 0 and fast["boundary_crossings"] == 0
-    assert fast["energy_end"] - full["energy_end"] <= 1e-3 * (full["energy_start"] - 1.0)
+    for scaffold in (True, False):  # with the scaffold the rule's own stop; without, an uncut small step's
+        _, fast = refine_charts(fl.Vl, fl.Fl, fl.uv, fl.vgroup, len(groups), scaffold=scaffold)
+        _, full = refine_charts(fl.Vl, fl.Fl, fl.uv, fl.vgroup, len(groups), excess_tol=0.0, scaffold=scaffold)
+        if scaffold:
+            assert fast["stop"].startswith("converged (gains below") and full["stop"] == "converged"
+        assert fast["converged"] and full["converged"]
+        assert fast["iterations"] < full["iterations"]
+        assert fast["flips"] == 0 and fast["boundary_crossings"] == 0
+        assert fast["energy_end"] - full["energy_end"] <= 1e-3 * (full["energy_start"] - 1.0)
+
+
+def test_polish_without_scaffold_stops_where_the_boundary_would_cross(monkeypatch):
+    """The joint polish has no scaffold: each chart's step is halved until its boundary does not cross itself.
+    On a cone whose isometric layout overlaps itself, from a Tutte start, the polish lowers the energy and stays
+    bijective; the same polish with the crossing check switched off runs into the overlap (so the check is what
+    keeps it out)."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+    from igl import adjacency_matrix, boundary_loop, map_vertices_to_circle
+
+    from heatparam import metrics
+
+    V, F = excess_cone()
+    b = boundary_loop(F)
+    uv = np.zeros((len(V), 2))
+    uv[b] = map_vertices_to_circle(V, b)
+    A = adjacency_matrix(F).astype(np.float64)
+    L = (sp.diags(np.asarray(A.sum(axis=1)).ravel()) - A).tocsr()  # Tutte's uniform weights: a bijective start
+    inner = np.setdiff1d(np.arange(len(V)), b)
+    uv[inner] = np.column_stack([spla.spsolve(L[inner][:, inner].tocsc(), -L[inner][:, b] @ uv[b, i])
+                                 for i in range(2)])
+    assert metrics.boundary_crossings(uv, F) == 0
+    groups = np.zeros(len(V), dtype=np.int64)
+    x, rep = refine_charts(V, F, uv, groups, 1)
+    assert rep["energy_end"] < rep["energy_start"] - 1.0
+    assert rep["flips"] == 0 and rep["boundary_crossings"] == 0 and count_overlaps(x, F) == 0
+    monkeypatch.setattr(metrics, "crossing_pairs", lambda P, E: np.zeros((0, 2), dtype=np.int64))
+    y, off = refine_charts(V, F, uv, groups, 1)
+    monkeypatch.undo()
+    assert off["flips"] == 0 and metrics.boundary_crossings(y, F) > 0 and count_overlaps(y, F) > 0

@@ -11,7 +11,7 @@ from heatparam.layout.conformal import conformal_layout
 from heatparam.mesh import boundary_loops
 from heatparam.refine import energy, multilevel, newton, scaffold, start
 
-from conftest import shared_mesh
+from conftest import excess_cone, shared_mesh
 
 
 def _param(V, F):
@@ -488,6 +488,44 @@ def test_fine_level_starts_with_the_scaffold_its_converged_coarse_level_ended_wi
     assert run.report()["converged"] and stiff.report()["converged"]
     assert run.it < stiff.it, (run.it, stiff.it)
     assert run.report()["energy_end"] == pytest.approx(stiff.report()["energy_end"], rel=1e-4)
+
+
+def test_fine_level_without_a_scaffold_until_boundaries_meet(cap_from_tutte, monkeypatch):
+    """After a converged coarse level the fine polish builds no scaffold while no step makes boundaries cross
+    (``multilevel.FINE_BARE``) and ends at the scaffolded fine polish's minimum, bijective; where the first step
+    would cross (the excess cone from a Tutte start, whose isometric layout overlaps itself) that iteration is done
+    again with the scaffold and the polish ends where the scaffolded one does."""
+    s, g, area, loops, x0 = cap_from_tutte
+    monkeypatch.setattr(multilevel, "COARSE_MIN", 1500)
+    kw = dict(min_vertices=len(s.V), max_iters=200, tol=1e-6, backend="auto")
+    built = []
+    real = newton.build_scaffold
+    monkeypatch.setattr(newton, "build_scaffold", lambda *a, **k: built.append(1) or real(*a, **k))
+    bare, ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
+    assert ml["coarse_polish"]["converged"] and bare.report()["scaffold_from_iteration"] is None
+    n_bare = len(built)  # the coarse level's scaffolds only
+    monkeypatch.setattr(multilevel, "FINE_BARE", False)
+    built.clear()
+    scaf, _ = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
+    assert len(built) > n_bare  # the same coarse level, and the scaffolded fine level's own
+    assert bare.report()["converged"] and scaf.report()["converged"]
+    assert bare.report()["energy_end"] == pytest.approx(scaf.report()["energy_end"], rel=1e-5)
+    assert metrics.boundary_crossings(bare.x, s.F) == 0
+    assert (energy.det(energy.jacobians(bare.x, s.F, g)) > 0).all()
+
+    V, F = excess_cone()
+    disk = tutte.build_disk(V, F)
+    x = tutte.tutte(V, disk)
+    g, area = energy.surface_gradients(V, F)
+    cone_loops = boundary_loops(F)
+    runs = {}
+    for mode in ("until crossing", True):
+        runs[mode] = newton.Polish(x, F, g, area, cone_loops, scaffold=mode)
+        runs[mode].run()
+    switched, scaffolded = runs["until crossing"].report(), runs[True].report()
+    assert switched["scaffold_from_iteration"] == 1
+    assert switched["iterations"] == scaffolded["iterations"]
+    assert switched["energy_end"] == pytest.approx(scaffolded["energy_end"], rel=1e-9)
 
 
 def test_multilevel_coarse_level_not_kept_paused_below_pause_coarse(cap_from_tutte, monkeypatch):

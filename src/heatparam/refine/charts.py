@@ -1,11 +1,15 @@
 """The bijective polish of many charts at once: one Newton system, one scaffold around all of them.
 
-An atlas has tens to thousands of small disk charts. Polishing each on its own pays the per-call costs (a scaffold,
-a Hessian pattern, a factorization, the bijectivity checks) once per chart; here the charts are set side by side
-with generous gaps, the scaffold (Jiang et al. 2017, ``scaffold``) is the box around all of them minus their
-interiors, and :func:`newton.polish` minimizes the symmetric Dirichlet energy of the union. The Hessian is block
-diagonal but for the scaffold; every chart stays locally injective (the line search) and no two boundaries ever
-cross (the scaffold), within a chart or between charts.
+An atlas has tens to thousands of small disk charts. Polishing each on its own pays the per-call costs (a Hessian
+pattern, a factorization, the bijectivity checks) once per chart; here the charts are set side by side with
+generous gaps and :func:`newton.polish` minimizes the symmetric Dirichlet energy of the union. Without a scaffold
+(the default, ``scaffold=False``) the Hessian is block diagonal, one block per chart, and each chart takes its own
+step: at most 0.9 × its flip barrier, then halved until no two boundary edges cross (checked, not barred: a
+flip-free disk whose boundary does not cross is bijective). Against one scaffold (Jiang et al. 2017) around all the
+charts it measured 0.39-0.54 -> 0.19-0.30 s on cow's 34 charts and 0.24-0.32 -> 0.11-0.13 s on 3holes' 12, at iso
+mean 1.02156 -> 1.02274 and 1.02259 -> 1.02259 (BENCHMARKS §20): a chart whose optimum overlaps itself stops where
+its boundary would cross, where a scaffold would have let the rest of it relax (``scaffold=True`` keeps that).
+Either way every chart stays locally injective and no two boundaries cross, within a chart or between charts.
 """
 
 from __future__ import annotations
@@ -52,8 +56,8 @@ def arrange(uv: np.ndarray, vgroup: np.ndarray, k: int) -> np.ndarray:
 
 
 def refine_charts(V: np.ndarray, F: np.ndarray, uv: np.ndarray, vgroup: np.ndarray, k: int, *,
-                  max_iters: int = 200, tol: float = 1e-6, backend: str = "auto", excess_tol: float = EXCESS_TOL
-                  ) -> tuple[np.ndarray, dict]:
+                  max_iters: int = 200, tol: float = 1e-6, backend: str = "auto", excess_tol: float = EXCESS_TOL,
+                  scaffold: bool = False) -> tuple[np.ndarray, dict]:
     """Polish k disk charts together (module docstring).
 
     Parameters
@@ -62,6 +66,7 @@ def refine_charts(V: np.ndarray, F: np.ndarray, uv: np.ndarray, vgroup: np.ndarr
     uv : (n,2) a bijective layout of every chart (LSCM at true area), anywhere: the charts are arranged first.
     vgroup : (n,) chart of each row (-1: a row no face uses).
     max_iters, tol, backend, excess_tol : as :func:`newton.polish`.
+    scaffold : one scaffold around all the charts (module docstring); default none, each chart on its own step.
 
     Returns
     -------
@@ -72,7 +77,8 @@ def refine_charts(V: np.ndarray, F: np.ndarray, uv: np.ndarray, vgroup: np.ndarr
     x0 = arrange(uv, vgroup, k)
     loops = boundary_loops(F)
     g, area = surface_gradients(V, F)
-    x, rep = polish(x0, F, g, area, loops, max_iters=max_iters, tol=tol, backend=backend, excess_tol=excess_tol)
+    x, rep = polish(x0, F, g, area, loops, max_iters=max_iters, tol=tol, backend=backend, excess_tol=excess_tol,
+                    scaffold=scaffold, groups=vgroup[F[:, 0]] if len(F) else None)
     if not np.isfinite(x).all():  # as refine.refine: the start is bijective and finite, keep it rather than NaN
         x = x0
         rep["fallback"] = "the polish produced non-finite coordinates: the start layouts are kept"

@@ -56,6 +56,12 @@ def normalized_energy(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.nda
 
 def max_step(J: np.ndarray, D: np.ndarray) -> float:
     """Largest t ≤ ∞ such that det(J + sD) > 0 for all s in [0, t) (per-face quadratic, first positive root)."""
+    t = face_step_limits(J, D)
+    return float(t.min()) if len(t) else float("inf")
+
+
+def face_step_limits(J: np.ndarray, D: np.ndarray) -> np.ndarray:
+    """(m,) per face: the largest t ≤ ∞ such that det(J + sD) > 0 for all s in [0, t) (:func:`max_step`)."""
     c = det(J)
     a = det(D)
     b = J[:, 0, 0] * D[:, 1, 1] + D[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * D[:, 1, 0] - D[:, 0, 1] * J[:, 1, 0]
@@ -74,7 +80,7 @@ def max_step(J: np.ndarray, D: np.ndarray) -> float:
         r1 = np.where(ok & (r1 > 0), r1, np.inf)
         r2 = np.where(ok & (r2 > 0), r2, np.inf)
         t = np.minimum(t, np.where(ok, np.minimum(r1, r2), np.inf))
-    return float(t.min()) if len(t) else float("inf")
+    return t
 
 def svd2(J: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Signed closed-form SVD of 2×2 matrices: J = U diag(σ) Vᵀ with U, V rotations, σ1 ≥ |σ2|.

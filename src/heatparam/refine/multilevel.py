@@ -58,6 +58,15 @@ MULTILEVEL_FINE_TOL_FACTOR = 100.0
 #: every iteration, as before stop 24.
 FINE_SCAFFOLD = True
 
+#: Such a fine level (after a converged coarse level) starts without a scaffold, and builds one only once a step
+#: would make boundaries cross (``newton.Polish(scaffold="until crossing")``): no scaffold triangulation, chain of
+#: scaffolds or new PARDISO analysis per iteration. Fine polish (2026-12-03, in process, the same iterations and
+#: iso mean to 5 digits): demo up 8.7 -> 5.9 s, cylinder_noisy 7.9 -> 6.6 s, cylinder_noisy02 11.0-11.9 ->
+#: 8.5-8.7 s (its noisy border never let a scaffold be kept), halftunnel up 9.8 -> 9.0 s, camelhead up 9.9-10.9 vs
+#: 10.3-11.1 s (its kept scaffold already held); halftunnel's uncut map (400-vertex threshold) switched at once
+#: and ended where the scaffolded polish did (BENCHMARKS §20)
+FINE_BARE = True
+
 
 def coarse_vertices(V: np.ndarray, F: np.ndarray, loops: list[np.ndarray], target: int) -> np.ndarray:
     """About ``target`` surface vertices spread evenly in 3D: every boundary vertex (loop order), then per cell of
@@ -322,7 +331,8 @@ def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[n
             ml["fine_tol"] = ftol
         # open-ended: Newton stops when converged (5-50 iterations measured), far below the cap
         return Polish(x if y is None else y, F, g, area, loops, max_iters=max_iters, tol=ftol, backend=backend,
-                      guards=guards, scaffold_weight=weight, keep_scaffold=keep)
+                      guards=guards, scaffold_weight=weight, keep_scaffold=keep,
+                      scaffold="until crossing" if (keep and FINE_BARE) else True)
 
     run: Polish | Levels = fine(y)
     if finish is not None:

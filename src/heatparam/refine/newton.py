@@ -38,7 +38,15 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from heatparam.mesh.topology import unique_ints
-from heatparam.refine.energy import hat_gradients, jacobians, max_step, scatter, sd_newton_blocks, symmetric_dirichlet
+from heatparam.refine.energy import (
+    face_step_limits,
+    hat_gradients,
+    jacobians,
+    max_step,
+    scatter,
+    sd_newton_blocks,
+    symmetric_dirichlet,
+)
 from heatparam.refine.scaffold import (
     SCAFFOLD_ADAPT,
     SCAFFOLD_WEIGHT,
@@ -61,6 +69,10 @@ STALL_ITERS = 5  # the polish gives up after this many barrier-limited iteration
 #: of the energy's excess stop the polish, whatever the step length and the scaffold's weight: on cow the 5
 #: barrier-limited iterations after the first such one gained 2e-5 of energy 1.00094 together (BENCHMARKS §18)
 EXCESS_STALL_ITERS = 2
+
+#: Without a scaffold (``Polish(scaffold=False)``) a step is halved at most this many times until no boundary
+#: edges cross
+CROSSING_HALVINGS = 20
 
 class HessianPattern:
     """Sparsity pattern of the surface's (2n,2n) Hessian, built once; ``matrix(vals)`` sums per-face blocks.
@@ -240,6 +252,92 @@ def _system(x: np.ndarray, J: np.ndarray, Es: float, F: np.ndarray, g: np.ndarra
     return _System(sc, E0, H, rhs, pat.upper)
 
 
+def _bare_system(x: np.ndarray, J: np.ndarray, Es: float, F: np.ndarray, g: np.ndarray, w_surf: np.ndarray,
+                 pat: HessianPattern) -> _System:
+    """:func:`_system` without a scaffold (``Polish(scaffold=False)``): the surface energy's PSD-projected Hessian
+    and gradient alone; ``sc`` is None."""
+    n = len(x)
+    gJ, H = pat.assemble(J, g, w_surf)
+    gr = scatter(gJ, F, g, n)
+    rhs = -np.concatenate([gr[:, 0], gr[:, 1]])
+    # each chart's rigid motions (translations and rotation) span the null space: a tiny shift keeps H definite
+    H = H + sp.identity(2 * n, format=H.format) * (1e-9 * float(H.diagonal().mean()))
+    return _System(None, Es, H, rhs, pat.upper)
+
+
+def _chart_steps(x: np.ndarray, d: np.ndarray, J: np.ndarray, D: np.ndarray, w_surf: np.ndarray,
+                 tmax: np.ndarray, groups: ChartGroups, halvings: int = CROSSING_HALVINGS
+                 ) -> np.ndarray | None:
+    """Per-chart step lengths (k,) along ``d`` (n,2) for a polish without a scaffold (``Polish(scaffold=False)``).
+
+    The charts (``groups``) share no vertex and the energy is a sum over them, so each takes its own step: from
+    min(1, ``tmax`` (k,), its flip barrier), halved until its energy decreases, doubled after a full step while that
+    lowers it further (as :func:`_line_search`), then halved until no two of its boundary edges cross
+    (``metrics.crossing_pairs``; a flip-free disk whose boundary does not cross itself is bijective, whatever the
+    path there: only the end point is checked; at most ``halvings`` times); 0 for a chart with no such step. None
+    when no chart moves or the boundaries still cross after ``halvings`` halvings."""
+    from heatparam.metrics import crossing_pairs
+
+    fg, k = groups.face, groups.k
+
+    def energies(t: np.ndarray, which: np.ndarray) -> np.ndarray:
+        """(k,) the energy of the charts ``which`` (k,) bool at their steps t (k,), 0 for the others."""
+        sel = which[fg]
+        e = symmetric_dirichlet(J[sel] + t[fg[sel]][:, None, None] * D[sel], w_surf[sel])[1]
+        return np.bincount(fg[sel], weights=w_surf[sel] * e, minlength=k)
+
+    everyone = np.ones(k, dtype=bool)
+    E0 = energies(np.zeros(k), everyone)
+    t = np.minimum(1.0, tmax)
+    E1 = energies(t, everyone)
+    for _ in range(40):
+        bad = ~(E1 < E0) & (t > 0)
+        if not bad.any():
+            break
+        t[bad] *= 0.5
+        E1 = np.where(bad, energies(t, bad), E1)
+    t[~(E1 < E0)] = 0.0  # no descent in 40 halvings (a chart already at its minimum): it stays
+    grow = (t >= 1.0) & (2 * t <= tmax)
+    while grow.any():
+        E2 = energies(2 * t, grow)
+        grow &= E2 < E1
+        t, E1 = np.where(grow, 2 * t, t), np.where(grow, E2, E1)
+        grow &= 2 * t <= tmax
+    for i in range(halvings + 1):
+        pairs = crossing_pairs(x + np.append(t, 0.0)[groups.vertex][:, None] * d, groups.edges)
+        if not len(pairs):
+            break
+        if i == halvings:
+            return None
+        hit = np.zeros(k, dtype=bool)
+        hit[groups.edge[pairs.ravel()]] = True
+        t[hit] *= 0.5
+        E1 = np.where(hit, energies(t, hit), E1)
+        t[hit & ~(E1 < E0)] = 0.0
+    return t if (t > 0).any() else None
+
+
+class ChartGroups(NamedTuple):
+    """The charts of a polish without a scaffold: face (m,) and vertex (n,) chart ids (k for a row no face uses:
+    it never moves), k charts, boundary edges (e,2) and the chart of each (e,)."""
+
+    face: np.ndarray
+    vertex: np.ndarray
+    k: int
+    edges: np.ndarray
+    edge: np.ndarray
+
+    @classmethod
+    def of(cls, F: np.ndarray, n: int, loops: list[np.ndarray], face: np.ndarray | None) -> ChartGroups:
+        face = np.zeros(len(F), dtype=np.int64) if face is None else np.asarray(face, dtype=np.int64)
+        k = int(face.max()) + 1 if len(face) else 0
+        vertex = np.full(n, k, dtype=np.int64)
+        vertex[F.ravel()] = np.repeat(face, 3)
+        edges = np.concatenate([np.column_stack([lp, np.roll(lp, -1)]) for lp in loops]
+                               or [np.zeros((0, 2), np.int64)]).astype(np.int64)
+        return cls(face, vertex, k, edges, vertex[edges[:, 0]])
+
+
 def _line_search(J: np.ndarray, D: np.ndarray, w_surf: np.ndarray, E0: float, tmax: float
                  ) -> tuple[float, float] | None:
     """Step t and surface energy E1 < E0 along the Jacobian directions D: from min(1, tmax), halved until the
@@ -276,34 +374,49 @@ def _safe_direction(sy: _System, fac, backend: str):
 
 
 def _barrier_step(x: np.ndarray, J: np.ndarray, Es: float, dx: np.ndarray, F: np.ndarray, g: np.ndarray,
-                  w_surf: np.ndarray, sc: Scaffold, guards: np.ndarray, gg: np.ndarray, loops: list[np.ndarray]
+                  w_surf: np.ndarray, sc: Scaffold | None, guards: np.ndarray, gg: np.ndarray, loops: list[np.ndarray],
+                  groups: ChartGroups | None = None, halvings: int = CROSSING_HALVINGS
                   ) -> tuple[float, np.ndarray] | None:
-    """(step length t, direction d (n,2)) along the Newton direction ``dx`` (2n,): at most 0.9 × the largest step
+    """(step length t, the step t d (n,2)) along the Newton direction ``dx`` (2n,): at most 0.9 × the largest step
     for which no surface or guard triangle flips (:func:`max_step`) and no farther than the chained scaffolds allow
     (``scaffold.feasible_step``, starting from the iteration's scaffold ``sc``), then :func:`_line_search` on the
     surface energy ``Es`` (the scaffold shapes the direction; the step may leave its triangulation behind); None
-    when no step lowers the energy."""
+    when no step lowers the energy. Without a scaffold (``sc`` None) every chart of ``groups`` takes its own step
+    (:func:`_chart_steps`; t is then their area-weighted mean, for the stop rules)."""
     n = len(x)
     d = np.column_stack([dx[:n], dx[n:]])
     D = jacobians(d, F, g)
-    tmax = min(0.9 * max_step(J, D), 0.9 * max_step(jacobians(x, guards, gg), jacobians(d, guards, gg)))
+    tguard = 0.9 * max_step(jacobians(x, guards, gg), jacobians(d, guards, gg))
+    if sc is None:
+        tf = face_step_limits(J, D)
+        tmax = np.full(groups.k, LINE_SEARCH_MAX)
+        np.minimum.at(tmax, groups.face, 0.9 * tf)
+        tc = _chart_steps(x, d, J, D, w_surf, np.minimum(tmax, tguard), groups, halvings)
+        if tc is None:
+            return None
+        tv = np.append(tc, 0.0)[groups.vertex]
+        wc = np.bincount(groups.face, weights=w_surf, minlength=groups.k)
+        return float(np.dot(np.minimum(tc, 1.0), wc) / wc.sum()), tv[:, None] * d
+    tmax = min(0.9 * max_step(J, D), tguard)
     tmax = feasible_step(x, d, loops, sc, min(tmax, LINE_SEARCH_MAX))
     step = _line_search(J, D, w_surf, Es, tmax)
-    return None if step is None else (step[0], d)
+    return None if step is None else (step[0], step[0] * d)
 
 
 def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray], *,
            max_iters: int = 200, tol: float = 1e-6, backend: str = "auto", bar=None,
-           guards: np.ndarray | None = None, excess_tol: float = 0.0) -> tuple[np.ndarray, dict]:
+           guards: np.ndarray | None = None, excess_tol: float = 0.0, scaffold: bool = True,
+           groups: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
     """Minimize the symmetric Dirichlet energy Σ A_f Ψ(J_f) from a bijective layout ``uv`` (n,2), keeping it bijective
     (the scheme: module docstring). g (m,3,2): hat gradients of the rest triangles; area (m,): their areas; loops:
     boundary loops, outer first; guards (k,3): extra triangles, positive in ``uv``, without energy but kept
     positive like the others (``multilevel.coarse_to_fine``); excess_tol: an iteration that lowers the energy by less
-    than this fraction of its excess over an isometry (Ψ - 4) also counts as small (0: off; ``refine.charts``).
+    than this fraction of its excess over an isometry (Ψ - 4) also counts as small (0: off; ``refine.charts``);
+    scaffold, groups: False polishes without one, each chart of ``groups`` on its own step (:class:`Polish`).
     Returns the layout (n,2) and a JSON-able report. :class:`Polish` runs the same iterations in steps.
     """
     run = Polish(uv, F, g, area, loops, max_iters=max_iters, tol=tol, backend=backend, bar=bar, guards=guards,
-                 excess_tol=excess_tol)
+                 excess_tol=excess_tol, scaffold=scaffold, groups=groups)
     run.run()
     return run.x, run.report()
 
@@ -317,12 +430,18 @@ class Polish:
     [``SCAFFOLD_WEIGHT_MIN``, 1]; ``report()`` gives the current one (a fine level starts where its converged
     coarse level ended: ``multilevel.multilevel_polish``). ``keep_scaffold``: keep the last iteration's scaffold
     while it holds (``scaffold.scaffold_holds``; the Hessian's pattern then stays and PARDISO refactorizes without
-    a new analysis) instead of re-triangulating at every iteration: for a fine level, whose layout moves little."""
+    a new analysis) instead of re-triangulating at every iteration: for a fine level, whose layout moves little.
+    ``scaffold`` False: no scaffold at all; ``groups`` (m,) the chart of each face (default one), the charts being
+    separate components, each takes its own step, checked instead of barred: halved until no two of its boundary
+    edges cross (``_chart_steps``): for many small charts polished together (``refine.charts``; BENCHMARKS §20).
+    ``scaffold="until crossing"``: without one while no boundary crosses at the line search's step (no halving),
+    then that iteration again and the rest with the scaffold (``report()["scaffold_from_iteration"]``, None if
+    never): for a fine level after a converged coarse one, whose boundary stays put (``multilevel.FINE_BARE``)."""
 
     def __init__(self, uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray], *,
                  max_iters: int = 200, tol: float = 1e-6, backend: str = "auto", bar=None,
                  guards: np.ndarray | None = None, excess_tol: float = 0.0, scaffold_weight: float = 1.0,
-                 keep_scaffold: bool = False):
+                 keep_scaffold: bool = False, scaffold: bool | str = True, groups: np.ndarray | None = None):
         t0 = time.perf_counter()
         self.keep_scaffold = keep_scaffold
         self.F, self.g, self.loops, self.bar, self.tol, self.excess_tol = F, g, loops, bar, tol, excess_tol
@@ -332,6 +451,12 @@ class Polish:
         self.w_max = SCAFFOLD_WEIGHT * float(self.w_surf.mean())
         self.w_min = SCAFFOLD_WEIGHT_MIN * self.w_max
         self.w_scaf = float(np.clip(scaffold_weight, SCAFFOLD_WEIGHT_MIN, 1.0)) * self.w_max
+        self.scaffold_after_crossing = scaffold == "until crossing"
+        self.crossing_switch = None
+        if scaffold is False:  # nothing to relax: the stop rules see the lightest weight
+            self.w_scaf = self.w_min
+        self.scaffold = scaffold is True
+        self.groups = None if scaffold is True else ChartGroups.of(F, n, loops, groups)
         self.x = uv.copy()
         self.hist: list[float] = []
         self.fac, self.refactorizations, self.it, self.converged, self.stop = None, 0, 0, False, "iteration cap"
@@ -389,8 +514,9 @@ class Polish:
         while self.it < self.max_iters:
             self.it += 1
             try:
-                sy = _system(self.x, self.J, self.Es, F, g, w_surf, self.w_scaf, self.loops, self.pat,
-                             self._sc if self.keep_scaffold else None)
+                sy = (_system(self.x, self.J, self.Es, F, g, w_surf, self.w_scaf, self.loops, self.pat,
+                              self._sc if self.keep_scaffold else None) if self.scaffold
+                      else _bare_system(self.x, self.J, self.Es, F, g, w_surf, self.pat))
             except ValueError as exc:
                 self.stop = f"scaffold failed: {exc}"
                 if self._ok is not None:  # the last step left boundaries touching: keep the layout before it
@@ -412,12 +538,18 @@ class Polish:
             if 0.5 * float(sy.rhs @ dx) <= DECREMENT_TOL * tol * sy.E0:
                 self.converged, self.stop = True, "converged"
                 break
-            step = _barrier_step(self.x, self.J, self.Es, dx, F, g, w_surf, sy.sc, self.guards, self.gg, self.loops)
+            step = _barrier_step(self.x, self.J, self.Es, dx, F, g, w_surf, sy.sc, self.guards, self.gg, self.loops,
+                                 self.groups, 0 if self.scaffold_after_crossing else CROSSING_HALVINGS)
             if step is None:
+                if self.scaffold_after_crossing and not self.scaffold:  # boundaries in the way: this iteration
+                    self.scaffold, self.crossing_switch = True, self.it  # again, and the rest, with the scaffold
+                    self.it -= 1
+                    self.hist.pop()
+                    continue
                 self.stop = "no descent"
                 break
-            t, d = step
-            self.x = self.x + t * d
+            t, move = step
+            self.x = self.x + move
             self.J = jacobians(self.x, F, g)
             Es1 = symmetric_dirichlet(self.J, w_surf)[0]
             if self.bar is not None:
@@ -434,7 +566,7 @@ class Polish:
                 break
             if gain / self.hist[-1] < tol or low_excess:
                 self.small += 1  # converged only after an uncut step with the lightest scaffold ("Stopping")
-                if t >= full_step and self.w_scaf > self.w_min:
+                if t >= full_step and self.scaffold and self.w_scaf > self.w_min:
                     self.w_scaf = self.w_min
                     continue
                 if t >= full_step or self.small >= STALL_ITERS:
@@ -461,4 +593,5 @@ class Polish:
                 "energy_start": float(hist[0] / 4 if hist else np.nan),
                 "energy_end": float((hist[-1] if self.done or not hist else self.Es) / 4 if hist else np.nan),
                 "factorizations": self.refactorizations, "backend": self.backend,
-                "scaffold_weight": self.w_scaf / self.w_max, "seconds": round(self.seconds, 3)}
+                "scaffold_weight": self.w_scaf / self.w_max, "seconds": round(self.seconds, 3),
+                **({"scaffold_from_iteration": self.crossing_switch} if self.scaffold_after_crossing else {})}
