@@ -4,6 +4,7 @@ overlap, and lower the distortion of each."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from heatparam import datasets
 from heatparam.atlas.overlap import count_overlaps
@@ -103,3 +104,39 @@ def test_polish_without_scaffold_stops_where_the_boundary_would_cross(monkeypatc
     y, off = refine_charts(V, F, uv, groups, 1)
     monkeypatch.undo()
     assert off["flips"] == 0 and metrics.boundary_crossings(y, F) > 0 and count_overlaps(y, F) > 0
+
+
+def test_a_chart_whose_boundary_keeps_crossing_does_not_hold_the_others_back(monkeypatch):
+    """Polished together with the excess cone, already polished until its boundary meets itself (so its steps
+    cross at once; a single halving allowed here), a chart lifted onto a sphere reaches the distortion it reaches
+    when polished alone: the crossing chart stays where it is, the others go on."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+    from igl import adjacency_matrix, boundary_loop, map_vertices_to_circle
+
+    from heatparam import metrics
+    from heatparam.refine import newton
+
+    Vc, Fc = excess_cone()
+    b = boundary_loop(Fc)
+    uc = np.zeros((len(Vc), 2))
+    uc[b] = map_vertices_to_circle(Vc, b)
+    A = adjacency_matrix(Fc).astype(np.float64)
+    L = (sp.diags(np.asarray(A.sum(axis=1)).ravel()) - A).tocsr()
+    inner = np.setdiff1d(np.arange(len(Vc)), b)
+    uc[inner] = np.column_stack([spla.spsolve(L[inner][:, inner].tocsc(), -L[inner][:, b] @ uc[b, i])
+                                 for i in range(2)])
+    uc, _ = refine_charts(Vc, Fc, uc, np.zeros(len(Vc), dtype=np.int64), 1)  # polished until its boundary meets
+    disk = datasets.flat_disk(h=0.12)
+    Vs, Fs = datasets.lift_sphere(disk.uv_true, 1.5), disk.F
+    us = conformal_layout(Vs, Fs)
+    monkeypatch.setattr(newton, "CROSSING_HALVINGS", 1)
+    alone, _ = refine_charts(Vs, Fs, us, np.zeros(len(Vs), dtype=np.int64), 1)
+    V = np.vstack([Vc, Vs])
+    F = np.vstack([Fc, Fs + len(Vc)])
+    groups = np.repeat([0, 1], [len(Vc), len(Vs)])
+    x, rep = refine_charts(V, F, np.vstack([uc, us]), groups, 2)
+    assert rep["flips"] == 0 and rep["boundary_crossings"] == 0 and count_overlaps(x, F) == 0
+    assert metrics.boundary_crossings(x[:len(Vc)], Fc) == 0
+    assert _mean_iso(Vs, Fs, x[len(Vc):]) == pytest.approx(_mean_iso(Vs, Fs, alone), abs=1e-4)
+    assert _mean_iso(Vs, Fs, x[len(Vc):]) < _mean_iso(Vs, Fs, us) - 1e-3

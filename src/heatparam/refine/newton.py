@@ -274,8 +274,9 @@ def _chart_steps(x: np.ndarray, d: np.ndarray, J: np.ndarray, D: np.ndarray, w_s
     min(1, ``tmax`` (k,), its flip barrier), halved until its energy decreases, doubled after a full step while that
     lowers it further (as :func:`_line_search`), then halved until no two of its boundary edges cross
     (``metrics.crossing_pairs``; a flip-free disk whose boundary does not cross itself is bijective, whatever the
-    path there: only the end point is checked; at most ``halvings`` times); 0 for a chart with no such step. None
-    when no chart moves or the boundaries still cross after ``halvings`` halvings."""
+    path there: only the end point is checked; at most ``halvings`` times, after which a chart still crossing stays
+    where it is); 0 for a chart with no such step. None when no chart moves, or (``halvings`` 0: the caller then
+    takes a scaffold) when any boundary crosses."""
     from heatparam.metrics import crossing_pairs
 
     fg, k = groups.face, groups.k
@@ -303,17 +304,22 @@ def _chart_steps(x: np.ndarray, d: np.ndarray, J: np.ndarray, D: np.ndarray, w_s
         grow &= E2 < E1
         t, E1 = np.where(grow, 2 * t, t), np.where(grow, E2, E1)
         grow &= 2 * t <= tmax
-    for i in range(halvings + 1):
+    for i in range(halvings + 2):
         pairs = crossing_pairs(x + np.append(t, 0.0)[groups.vertex][:, None] * d, groups.edges)
         if not len(pairs):
             break
-        if i == halvings:
+        if halvings == 0:
             return None
         hit = np.zeros(k, dtype=bool)
         hit[groups.edge[pairs.ravel()]] = True
+        if i >= halvings:  # still crossing: those charts stay where they are (checked once more)
+            t[hit] = 0.0
+            continue
         t[hit] *= 0.5
         E1 = np.where(hit, energies(t, hit), E1)
         t[hit & ~(E1 < E0)] = 0.0
+    else:
+        return None
     return t if (t > 0).any() else None
 
 
