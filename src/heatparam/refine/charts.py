@@ -1,4 +1,4 @@
-"""The bijective polish of many charts at once: one Newton system, one scaffold around all of them.
+"""The bijective polish of many charts at once: one Newton system, each chart on its own step.
 
 An atlas has tens to thousands of small disk charts. Polishing each on its own pays the per-call costs (a Hessian
 pattern, a factorization, the bijectivity checks) once per chart; here the charts are set side by side with

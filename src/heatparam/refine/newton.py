@@ -26,6 +26,11 @@ after a cut step.
 The Hessian's sparsity pattern is built once (:class:`HessianPattern`); directions are solved with a reused
 factorization (:func:`newton_direction`); the line search is bounded by the flip barrier (``energy.max_step``,
 ``scaffold.feasible_step``).
+
+Without a scaffold (``Polish(scaffold=False)``: the atlas's charts, ``refine.charts``; ``"until crossing"``: a fine
+level after a converged coarse one, ``multilevel.FINE_BARE``) the Hessian is the surface's alone, its pattern fixed,
+and each step is checked instead of barred: halved until no two boundary edges cross (:func:`_chart_steps`, one
+step per chart), or, until crossing, redone with the scaffold at the first crossing.
 """
 
 from __future__ import annotations
