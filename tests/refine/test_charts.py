@@ -8,6 +8,7 @@ import pytest
 
 from heatparam import datasets
 from heatparam.atlas.overlap import count_overlaps
+from heatparam.layout import tutte
 from heatparam.layout.conformal import conformal_layout
 from heatparam.metrics import true_scale_iso
 from heatparam.refine.charts import arrange, refine_charts
@@ -80,21 +81,10 @@ def test_polish_without_scaffold_stops_where_the_boundary_would_cross(monkeypatc
     On a cone whose isometric layout overlaps itself, from a Tutte start, the polish lowers the energy and stays
     bijective; the same polish with the crossing check switched off runs into the overlap (so the check is what
     keeps it out)."""
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
-    from igl import adjacency_matrix, boundary_loop, map_vertices_to_circle
-
     from heatparam import metrics
 
     V, F = excess_cone()
-    b = boundary_loop(F)
-    uv = np.zeros((len(V), 2))
-    uv[b] = map_vertices_to_circle(V, b)
-    A = adjacency_matrix(F).astype(np.float64)
-    L = (sp.diags(np.asarray(A.sum(axis=1)).ravel()) - A).tocsr()  # Tutte's uniform weights: a bijective start
-    inner = np.setdiff1d(np.arange(len(V)), b)
-    uv[inner] = np.column_stack([spla.spsolve(L[inner][:, inner].tocsc(), -L[inner][:, b] @ uv[b, i])
-                                 for i in range(2)])
+    uv = tutte.tutte(V, tutte.build_disk(V, F))  # a bijective start
     assert metrics.boundary_crossings(uv, F) == 0
     groups = np.zeros(len(V), dtype=np.int64)
     x, rep = refine_charts(V, F, uv, groups, 1)
@@ -110,22 +100,11 @@ def test_a_chart_whose_boundary_keeps_crossing_does_not_hold_the_others_back(mon
     """Polished together with the excess cone, already polished until its boundary meets itself (so its steps
     cross at once; a single halving allowed here), a chart lifted onto a sphere reaches the distortion it reaches
     when polished alone: the crossing chart stays where it is, the others go on."""
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
-    from igl import adjacency_matrix, boundary_loop, map_vertices_to_circle
-
     from heatparam import metrics
     from heatparam.refine import newton
 
     Vc, Fc = excess_cone()
-    b = boundary_loop(Fc)
-    uc = np.zeros((len(Vc), 2))
-    uc[b] = map_vertices_to_circle(Vc, b)
-    A = adjacency_matrix(Fc).astype(np.float64)
-    L = (sp.diags(np.asarray(A.sum(axis=1)).ravel()) - A).tocsr()
-    inner = np.setdiff1d(np.arange(len(Vc)), b)
-    uc[inner] = np.column_stack([spla.spsolve(L[inner][:, inner].tocsc(), -L[inner][:, b] @ uc[b, i])
-                                 for i in range(2)])
+    uc = tutte.tutte(Vc, tutte.build_disk(Vc, Fc))
     uc, _ = refine_charts(Vc, Fc, uc, np.zeros(len(Vc), dtype=np.int64), 1)  # polished until its boundary meets
     disk = datasets.flat_disk(h=0.12)
     Vs, Fs = datasets.lift_sphere(disk.uv_true, 1.5), disk.F

@@ -59,6 +59,8 @@ from heatparam.refine.scaffold import (
     Scaffold,
     build_scaffold,
     feasible_step,
+    loop_edges,
+    loop_ranges,
     scaffold_holds,
     scaffold_matrix,
 )
@@ -236,38 +238,31 @@ class _System(NamedTuple):
 
 
 def _system(x: np.ndarray, J: np.ndarray, Es: float, F: np.ndarray, g: np.ndarray, w_surf: np.ndarray,
-            w_scaf: float, loops: list[np.ndarray], pat: HessianPattern, last: Scaffold | None = None) -> _System:
+            w_scaf: float, loops: list[np.ndarray], pat: HessianPattern, last: Scaffold | None = None,
+            scaffold: bool = True) -> _System:
     """Scaffold around ``x`` (``last``, the previous iteration's, while it holds: ``scaffold.scaffold_holds``;
     else :func:`build_scaffold`, ValueError when it cannot be built), PSD-projected Hessian and gradient of
-    surface + scaffold energy (each scaffold triangle measured against its shape in ``x``)."""
-    n = len(x)
-    sc = last if last is not None and scaffold_holds(x, last) else build_scaffold(x, loops)
-    xs = np.vstack([x, sc.box])
-    gs = hat_gradients(xs[sc.F])
-    ws = np.full(len(sc.F), w_scaf)
-    Js = jacobians(xs, sc.F, gs)
-    E0 = Es + symmetric_dirichlet(Js, ws)[0]
-    gJ, Hs = pat.assemble(J, g, w_surf)
-    gJs, blocks_s = sd_newton_blocks(Js, gs, ws)
-    Hc = scaffold_matrix(sc.F, blocks_s, n)
-    H = Hs + (sp.triu(Hc, format="csr") if pat.upper else Hc)
-    gr = scatter(gJ, F, g, n) + scatter(gJs, sc.F, gs, n + 4)[:n]
-    rhs = -np.concatenate([gr[:, 0], gr[:, 1]])
-    H = H + sp.identity(2 * n, format=H.format) * (1e-9 * float(H.diagonal().mean()))  # rigid rotation
-    return _System(sc, E0, H, rhs, pat.upper)
-
-
-def _bare_system(x: np.ndarray, J: np.ndarray, Es: float, F: np.ndarray, g: np.ndarray, w_surf: np.ndarray,
-                 pat: HessianPattern) -> _System:
-    """:func:`_system` without a scaffold (``Polish(scaffold=False)``): the surface energy's PSD-projected Hessian
-    and gradient alone; ``sc`` is None."""
+    surface + scaffold energy (each scaffold triangle measured against its shape in ``x``). ``scaffold`` False
+    (``Polish(scaffold=False)``): the surface energy's alone, ``sc`` None."""
     n = len(x)
     gJ, H = pat.assemble(J, g, w_surf)
     gr = scatter(gJ, F, g, n)
+    sc, E0 = None, Es
+    if scaffold:
+        sc = last if last is not None and scaffold_holds(x, last) else build_scaffold(x, loops)
+        xs = np.vstack([x, sc.box])
+        gs = hat_gradients(xs[sc.F])
+        ws = np.full(len(sc.F), w_scaf)
+        Js = jacobians(xs, sc.F, gs)
+        E0 = Es + symmetric_dirichlet(Js, ws)[0]
+        gJs, blocks_s = sd_newton_blocks(Js, gs, ws)
+        Hc = scaffold_matrix(sc.F, blocks_s, n)
+        H = H + (sp.triu(Hc, format="csr") if pat.upper else Hc)
+        gr = gr + scatter(gJs, sc.F, gs, n + 4)[:n]
     rhs = -np.concatenate([gr[:, 0], gr[:, 1]])
-    # each chart's rigid motions (translations and rotation) span the null space: a tiny shift keeps H definite
+    # the rigid motions (without a scaffold each chart's translations too) span the null space: a tiny shift
     H = H + sp.identity(2 * n, format=H.format) * (1e-9 * float(H.diagonal().mean()))
-    return _System(None, Es, H, rhs, pat.upper)
+    return _System(sc, E0, H, rhs, pat.upper)
 
 
 def _chart_steps(x: np.ndarray, d: np.ndarray, J: np.ndarray, D: np.ndarray, w_surf: np.ndarray,
@@ -330,7 +325,8 @@ def _chart_steps(x: np.ndarray, d: np.ndarray, J: np.ndarray, D: np.ndarray, w_s
 
 class ChartGroups(NamedTuple):
     """The charts of a polish without a scaffold: face (m,) and vertex (n,) chart ids (k for a row no face uses:
-    it never moves), k charts, boundary edges (e,2) and the chart of each (e,)."""
+    it never moves), k charts, boundary edges (e,2) and the chart of each (e,), each chart's weight (k,) in the
+    energy (the sum of its faces' weights ``w``)."""
 
     face: np.ndarray
     vertex: np.ndarray
@@ -338,15 +334,18 @@ class ChartGroups(NamedTuple):
     edges: np.ndarray
     edge: np.ndarray
 
+    weight: np.ndarray
+
     @classmethod
-    def of(cls, F: np.ndarray, n: int, loops: list[np.ndarray], face: np.ndarray | None) -> ChartGroups:
+    def of(cls, F: np.ndarray, n: int, loops: list[np.ndarray], face: np.ndarray | None, w: np.ndarray
+           ) -> ChartGroups:
         face = np.zeros(len(F), dtype=np.int64) if face is None else np.asarray(face, dtype=np.int64)
         k = int(face.max()) + 1 if len(face) else 0
         vertex = np.full(n, k, dtype=np.int64)
         vertex[F.ravel()] = np.repeat(face, 3)
-        edges = np.concatenate([np.column_stack([lp, np.roll(lp, -1)]) for lp in loops]
-                               or [np.zeros((0, 2), np.int64)]).astype(np.int64)
-        return cls(face, vertex, k, edges, vertex[edges[:, 0]])
+        edges = (np.concatenate(loops)[loop_edges(loop_ranges(loops))].astype(np.int64) if loops
+                 else np.zeros((0, 2), np.int64))
+        return cls(face, vertex, k, edges, vertex[edges[:, 0]], np.bincount(face, weights=w, minlength=k))
 
 
 def _line_search(J: np.ndarray, D: np.ndarray, w_surf: np.ndarray, E0: float, tmax: float
@@ -406,8 +405,7 @@ def _barrier_step(x: np.ndarray, J: np.ndarray, Es: float, dx: np.ndarray, F: np
         if tc is None:
             return None
         tv = np.append(tc, 0.0)[groups.vertex]
-        wc = np.bincount(groups.face, weights=w_surf, minlength=groups.k)
-        return float(np.dot(np.minimum(tc, 1.0), wc) / wc.sum()), tv[:, None] * d
+        return float(np.dot(np.minimum(tc, 1.0), groups.weight) / groups.weight.sum()), tv[:, None] * d
     tmax = min(0.9 * max_step(J, D), tguard)
     tmax = feasible_step(x, d, loops, sc, min(tmax, LINE_SEARCH_MAX))
     step = _line_search(J, D, w_surf, Es, tmax)
@@ -467,7 +465,7 @@ class Polish:
         if scaffold is False:  # nothing to relax: the stop rules see the lightest weight
             self.w_scaf = self.w_min
         self.scaffold = scaffold is True
-        self.groups = None if scaffold is True else ChartGroups.of(F, n, loops, groups)
+        self.groups = None if scaffold is True else ChartGroups.of(F, n, loops, groups, self.w_surf)
         self.x = uv.copy()
         self.hist: list[float] = []
         self.fac, self.refactorizations, self.it, self.converged, self.stop = None, 0, 0, False, "iteration cap"
@@ -525,9 +523,8 @@ class Polish:
         while self.it < self.max_iters:
             self.it += 1
             try:
-                sy = (_system(self.x, self.J, self.Es, F, g, w_surf, self.w_scaf, self.loops, self.pat,
-                              self._sc if self.keep_scaffold else None) if self.scaffold
-                      else _bare_system(self.x, self.J, self.Es, F, g, w_surf, self.pat))
+                sy = _system(self.x, self.J, self.Es, F, g, w_surf, self.w_scaf, self.loops, self.pat,
+                             self._sc if self.keep_scaffold else None, self.scaffold)
             except ValueError as exc:
                 self.stop = f"scaffold failed: {exc}"
                 if self._ok is not None:  # the last step left boundaries touching: keep the layout before it
