@@ -3,6 +3,8 @@ gets alone, whatever the row order, and report each chart's own flips, crossings
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from heatparam import datasets
@@ -68,3 +70,87 @@ def test_quick_flatten_of_a_flat_chart_is_an_isometry():
     topo = Topology.build(s.V, s.F)
     Vl, Fl, _ = chart_mesh(topo, np.arange(len(s.F)), np.ones(3 * len(s.F), dtype=bool))
     assert len(Fl) == len(s.F)
+
+
+def _two_charts(V, F, left):
+    """The faces split by ``left`` (m,) bool into two charts, each laid out by LSCM: (topo, glued, layouts, members,
+    the pair's longest common stretch)."""
+    seg_mod = sys.modules["heatparam.atlas.segment"]
+    topo = Topology.build(V, F)
+    members = {0: np.flatnonzero(left), 1: np.flatnonzero(~left)}
+    glued = np.zeros(3 * len(F), dtype=bool)
+    for faces in members.values():
+        glued |= seg_mod._glue_inside(topo, faces)
+    fl = flatten_charts(topo, [members[0], members[1]], glued)
+    assert fl.ok(np.inf).all()
+    layouts = seg_mod._Layouts(len(F))
+    layouts.add([0, 1], [members[0], members[1]], fl, [0, 1], [True, True])
+    h = np.flatnonzero((topo.opp >= 0) & left[np.arange(3 * len(F)) // 3])
+    h = h[~left[topo.opp[h] // 3]]  # chart 0's half of the common border
+    return seg_mod, topo, glued, layouts, members, seg_mod._stretches(topo, h)[0]
+
+
+def test_extension_of_a_flat_chart_is_exact():
+    """The smaller chart laid out against the larger one's layout, the stretch pinned where the larger has it: on a
+    flat square (split along a wavy line) the union is an exact isometry, every corner-to-corner length as in 3D
+    (wrong pins, or UVs written to the wrong corners, would stretch the faces along the stretch)."""
+    s = datasets.flat_square(h=0.08)
+    C = s.V[s.F].mean(axis=1)
+    left = C[:, 0] < 0.3 * np.sin(3 * C[:, 1])  # chart 1 (the larger) keeps its layout, chart 0 is extended over
+    seg_mod, topo, glued, layouts, members, st = _two_charts(s.V, s.F, left)
+    assert len(members[0]) < len(members[1]) and len(st) > 5
+    before = layouts.uv[3 * members[1][:, None] + np.arange(3)].copy()
+    ok = seg_mod._extension_tests(topo, glued, layouts, members, [(0, 1, st)], 1.0 + 1e-7)
+    assert ok[0]
+    assert (layouts.uv[3 * members[1][:, None] + np.arange(3)] == before).all()  # the larger chart stays put
+    U = layouts.uv.reshape(-1, 3, 2)
+    P = s.V[s.F]
+    for j in range(3):
+        lu = np.linalg.norm(U[:, (j + 1) % 3] - U[:, j], axis=1)
+        lp = np.linalg.norm(P[:, (j + 1) % 3] - P[:, j], axis=1)
+        np.testing.assert_allclose(lu, lp, rtol=1e-7)
+    # the two sides of the stretch meet: chart 0's corners on it sit where chart 1's do
+    h = st
+    o = topo.opp[h]
+    np.testing.assert_array_equal(layouts.uv[h], layouts.uv[o - o % 3 + (o % 3 + 1) % 3])
+
+
+def test_extension_that_would_overlap_is_refused():
+    """A cone with more than 2π around its apex, cut open along a generator, in two halves: each flattens, the
+    union overlaps itself (its boundary crosses), so the extension is refused whatever the distortion bound; the
+    same split of a cone with less than 2π passes."""
+    from conftest import excess_cone
+
+    for wave, expect in ((0.35, False), (0.0, True)):  # apex angle ~1.6 × 2π, and a plain cone (~0.86 × 2π)
+        V, F = excess_cone(wave=wave)
+        if not wave:
+            V[:, 2] = 0.6 * np.linalg.norm(V[:, :2], axis=1)
+        C = V[F].mean(axis=1)
+        left = np.arctan2(C[:, 1], C[:, 0]) < 0.0
+        seg_mod, topo, glued, layouts, members, st = _two_charts(V, F, left)
+        ok = seg_mod._extension_tests(topo, glued, layouts, members, [(0, 1, st)], np.inf)
+        assert ok[0] == expect
+
+
+def test_segmented_charts_layouts_are_bijective():
+    """Every chart's checked layout (``Segmentation.corner_uv``) has no flipped face, no two overlapping triangles
+    (an exact check, independent of the border crossings the merges test) and stays within the bound; the excess
+    cone with a loose bound makes the merges depend on the crossing test alone."""
+    from heatparam.atlas.overlap import count_overlaps
+    from heatparam.atlas.segment import proxy_bound
+
+    from conftest import excess_cone
+
+    for (V, F), bound in ((datasets.torus(n_major=24, n_minor=10), 1.05), (excess_cone(), 50.0)):
+        seg = segment(Topology.build(V, F), bound)
+        k = int(seg.chart.max()) + 1
+        assert seg.checked.all() and (seg.iso <= proxy_bound(bound)).all()
+        for c in range(k):
+            faces = np.flatnonzero(seg.chart == c)
+            corners = 3 * faces[:, None] + np.arange(3)
+            U = seg.corner_uv[corners]
+            e1, e2 = U[:, 1] - U[:, 0], U[:, 2] - U[:, 0]
+            assert (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] > 0).all()
+            assert count_overlaps(seg.corner_uv, corners) == 0
+        if bound > 2:
+            assert k >= 2  # the whole cone in one chart would overlap itself

@@ -201,7 +201,7 @@ def _segmented_part(comp, ci, bound: float, max_charts: int | None, seed: int, o
         done, rest = [], list(range(len(groups)))
         seg.stats["joint_polish"] = {"used": False, "reason": "mds_start='always': each chart through the pipeline"}
     else:
-        done, rest, seg.stats["joint_polish"] = _polish_together(topo, groups, seg.glued, opts, limit)
+        done, rest, seg.stats["joint_polish"] = _polish_together(topo, groups, seg, opts, limit)
     for faces, Fl, vert, uv, info in done:
         charts.append({"faces": comp.faces[faces], "Fl": Fl, "vert": comp.vertex[vert], "uv": uv,
                        "component": int(owner[faces[0]]), "info": info})
@@ -231,13 +231,19 @@ def _segmented_part(comp, ci, bound: float, max_charts: int | None, seed: int, o
     return made, seg.stats
 
 
-def _polish_together(topo, groups: list[np.ndarray], glued: np.ndarray, opts: dict, limit: float | None):
-    """Every chart whose quick flattening (LSCM) is bijective, polished together (``refine.charts``): (the charts
-    done as (faces, Fl, vert, uv, info) tuples, the indices of the others, the polish's report)."""
+def _polish_together(topo, groups: list[np.ndarray], seg, opts: dict, limit: float | None):
+    """Every chart polished together (``refine.charts``) from the less distorted of its bijective layouts: its quick
+    flattening (LSCM) and the layout the segmentation checked (``seg.corner_uv``): (the charts done as (faces, Fl,
+    vert, uv, info) tuples, the indices of the others — neither layout bijective —, the polish's report)."""
     from heatparam.refine.charts import refine_charts
 
-    fl = flatten_charts(topo, groups, glued)
-    good = np.flatnonzero(fl.ok(np.inf))
+    fl = flatten_charts(topo, groups, seg.glued)
+    ok = fl.ok(np.inf)
+    for i in np.flatnonzero(seg.checked & (~ok | (seg.iso < fl.iso))):
+        rows = fl.Fl[fl.face_start[i]:fl.face_start[i + 1]].ravel()
+        fl.uv[rows] = seg.corner_uv[(3 * groups[i][:, None] + np.arange(3)).ravel()]
+        ok[i] = True
+    good = np.flatnonzero(ok)
     if not len(good):
         return [], list(range(len(groups))), {"charts": 0}
     new = np.full(len(groups), -1, dtype=np.int64)

@@ -304,8 +304,11 @@ def _chart_steps(x: np.ndarray, d: np.ndarray, J: np.ndarray, D: np.ndarray, w_s
         grow &= E2 < E1
         t, E1 = np.where(grow, 2 * t, t), np.where(grow, E2, E1)
         grow &= 2 * t <= tmax
+    edges = groups.edges
+    check = np.arange(len(edges))  # the edges whose pairs can cross: all, then those near the charts just moved
     for i in range(halvings + 2):
-        pairs = crossing_pairs(x + np.append(t, 0.0)[groups.vertex][:, None] * d, groups.edges)
+        P = x + np.append(t, 0.0)[groups.vertex][:, None] * d
+        pairs = check[crossing_pairs(P, edges[check])]
         if not len(pairs):
             break
         if halvings == 0:
@@ -314,10 +317,16 @@ def _chart_steps(x: np.ndarray, d: np.ndarray, J: np.ndarray, D: np.ndarray, w_s
         hit[groups.edge[pairs.ravel()]] = True
         if i >= halvings:  # still crossing: those charts stay where they are (checked once more)
             t[hit] = 0.0
-            continue
-        t[hit] *= 0.5
-        E1 = np.where(hit, energies(t, hit), E1)
-        t[hit & ~(E1 < E0)] = 0.0
+        else:
+            t[hit] *= 0.5
+            E1 = np.where(hit, energies(t, hit), E1)
+            t[hit & ~(E1 < E0)] = 0.0
+        # only pairs with an edge of a chart that moved can cross now: its edges, and the others' in its box
+        P = x + np.append(t, 0.0)[groups.vertex][:, None] * d
+        A, B = P[edges[:, 0]], P[edges[:, 1]]
+        moved = hit[groups.edge]
+        lo, hi = np.minimum(A, B)[moved].min(axis=0), np.maximum(A, B)[moved].max(axis=0)
+        check = np.flatnonzero(moved | ((np.maximum(A, B) >= lo) & (np.minimum(A, B) <= hi)).all(axis=1))
     else:
         return None
     return t if (t > 0).any() else None
