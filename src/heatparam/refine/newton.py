@@ -324,9 +324,13 @@ def _chart_steps(x: np.ndarray, d: np.ndarray, J: np.ndarray, D: np.ndarray, w_s
         # only pairs with an edge of a chart that moved can cross now: its edges, and the others' in its box
         P = x + np.append(t, 0.0)[groups.vertex][:, None] * d
         A, B = P[edges[:, 0]], P[edges[:, 1]]
-        moved = hit[groups.edge]
-        lo, hi = np.minimum(A, B)[moved].min(axis=0), np.maximum(A, B)[moved].max(axis=0)
-        check = np.flatnonzero(moved | ((np.maximum(A, B) >= lo) & (np.minimum(A, B) <= hi)).all(axis=1))
+        lo_e, hi_e = np.minimum(A, B), np.maximum(A, B)
+        near = hit[groups.edge]
+        for c in np.flatnonzero(hit):
+            own = groups.edge == c
+            lo, hi = lo_e[own].min(axis=0), hi_e[own].max(axis=0)
+            near |= ((hi_e >= lo) & (lo_e <= hi)).all(axis=1)
+        check = np.flatnonzero(near)
     else:
         return None
     return t if (t > 0).any() else None
