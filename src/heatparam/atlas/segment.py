@@ -720,7 +720,8 @@ def _merge(topo: Topology, chart: np.ndarray, glued: np.ndarray, bound: float, l
     charts not picked yet in it and tests all their unions at once (:func:`_extension_tests`: the smaller chart laid
     out against the larger one's layout, the stretch's vertices pinned there); a merge is kept when the union's
     layout is bijective and within the bound; stops early at ``stop_at`` charts. A pair with a chart whose layout
-    was never checked is tested by flattening the whole union (:func:`flatten_charts`).
+    was never checked, or whose extension is undecided, is tested by flattening the whole union
+    (:func:`_union_tests`).
     (Letting a chart join up to 4 of a round's unions, one of them kept, was measured: fewer rounds, more faces
     per solve, no faster on cow or 3holes and 34-40 charts instead of 34.)"""
     opp = topo.opp
@@ -774,7 +775,9 @@ def _merge(topo: Topology, chart: np.ndarray, glued: np.ndarray, bound: float, l
         pinned = [p for p, (a, b, _) in enumerate(picked) if layouts.ok[a] and layouts.ok[b]]
         whole = [p for p in range(len(picked)) if not (layouts.ok[picked[p][0]] and layouts.ok[picked[p][1]])]
         if pinned:
-            ok[pinned] = _extension_tests(topo, glued, layouts, members, [picked[p] for p in pinned], bound)
+            ok[pinned], undecided = _extension_tests(topo, glued, layouts, members, [picked[p] for p in pinned],
+                                                     bound)
+            whole += [p for p, u in zip(pinned, undecided, strict=True) if u]
         if whole:
             ok[whole] = _union_tests(topo, glued, layouts, members, [picked[p] for p in whole], bound)
         tests += len(picked)
@@ -823,7 +826,8 @@ def _extension_tests(topo: Topology, glued: np.ndarray, layouts: _Layouts, membe
     area-weighted isometric distortion (both charts' faces) is within ``bound`` and no two edges of its border
     cross. Cost ∝ the smaller chart, where flattening the union costs ∝ both: the large charts at the end of the
     merging are tested against each neighbour in turn (cow: 97k faces flattened in 556 tests, 21k this way). The
-    layouts of the unions that pass are kept under a's id. (k,) bool."""
+    layouts of the unions that pass are kept under a's id. Returns (passed (k,) bool, undecided (k,) bool: no
+    extension exists — a row of the smaller chart pinned at two places — or the shared solve failed)."""
     import igl
 
     from heatparam.metrics import true_scale_iso
@@ -849,23 +853,31 @@ def _extension_tests(topo: Topology, glued: np.ndarray, layouts: _Layouts, membe
     fp, jp = hp // 3, hp % 3
     rows = np.concatenate([Fl[pos, kq], Fl[pos, (kq + 1) % 3]])
     vals = np.concatenate([layouts.uv[3 * fp + (jp + 1) % 3], layouts.uv[3 * fp + jp]])
-    rows, first = np.unique(rows, return_index=True)
-    vals = vals[first]
-    ok = np.zeros(k, dtype=bool)
+    # a row pinned twice at different places (the larger chart has two corners there: an inner seam of its own
+    # ends on the stretch) has no extension: that union is flattened whole (the caller's undecided)
+    o = np.lexsort((vals[:, 1], vals[:, 0], rows))
+    rows, vals = rows[o], vals[o]
+    again = rows[1:] == rows[:-1]
+    rgroup = np.empty(len(Vl), dtype=np.int64)
+    rgroup[Fl.ravel()] = np.repeat(grp, 3)
+    ok, undecided = np.zeros(k, dtype=bool), np.zeros(k, dtype=bool)
+    undecided[rgroup[rows[1:][again & (vals[1:] != vals[:-1]).any(axis=1)]]] = True
+    first = np.r_[True, ~again]
+    rows, vals = rows[first], vals[first]
     try:
         res = igl.lscm(Vl, Fl, rows, vals)
     except (RuntimeError, ValueError):
-        return ok
+        return ok, np.ones(k, dtype=bool)  # one degenerate chart spoils the shared solve: each union whole
     uv = np.asarray(res[0] if isinstance(res, tuple) else res, dtype=np.float64)
     if not np.isfinite(uv).all():
-        return ok
+        return ok, np.ones(k, dtype=bool)
     iso, area, sa = true_scale_iso(Vl, Fl, uv)
     flips = np.bincount(grp, weights=~(np.isfinite(iso) & (sa > 0)), minlength=k)
     isum = np.bincount(grp, weights=np.where(np.isfinite(iso), iso, 0.0) * area, minlength=k)
     asum = np.bincount(grp, weights=area, minlength=k)
     mean = (np.array([layouts.isum[c] for c in big]) + isum) / np.maximum(
         np.array([layouts.area[c] for c in big]) + asum, 1e-300)
-    cand = (flips == 0) & (mean <= bound)
+    cand = (flips == 0) & (mean <= bound) & ~undecided
     if cand.any():
         cand[cand] = _border_crossings(topo, glued, layouts, members, picked, big, qf, grp, uv[Fl], cand) == 0
     for i in np.flatnonzero(cand):
@@ -875,7 +887,7 @@ def _extension_tests(topo: Topology, glued: np.ndarray, layouts: _Layouts, membe
         layouts.isum[a] = layouts.isum[big[i]] + float(isum[i])
         layouts.area[a] = layouts.area[big[i]] + float(asum[i])
         layouts.ok[a] = True  # the larger chart's corners are in place already (under a's id or b's)
-    return cand
+    return cand, undecided
 
 
 def _border_crossings(topo, glued, layouts, members, picked, big, qf, grp, Uq, which) -> np.ndarray:
