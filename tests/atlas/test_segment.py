@@ -3,6 +3,7 @@ gets alone, whatever the row order, and report each chart's own flips, crossings
 
 from __future__ import annotations
 
+import copy
 import sys
 
 import numpy as np
@@ -156,34 +157,46 @@ def test_segmented_charts_layouts_are_bijective():
             assert k >= 2  # the whole cone in one chart would overlap itself
 
 
-def test_extension_with_a_seam_of_the_larger_chart_on_the_stretch_is_left_to_a_whole_flattening():
-    """The larger chart cut open along one edge from a vertex in the middle of the stretch: it has two corners
-    there, at two places, and the smaller chart's single corner cannot be pinned to both; the test is undecided
-    (the merge then flattens the union whole) rather than passed with a torn layout."""
+def _slit(topo, glued, members, c, st):
+    """``glued`` with chart c cut open along two edges from a vertex in the middle of the stretch ``st`` into the
+    chart (v → u → w, u and w inner vertices); (the cut glued, the first half-edge cut)."""
+    ha, hb = topo.ends()
+    inner = np.intersect1d(hb[st], ha[st])  # the stretch's vertices between two of its edges
+    v = int(inner[len(inner) // 2])
+    h_all = np.arange(len(glued))
+    mine = np.isin(h_all // 3, members[c])
+    on_border = np.zeros(len(topo.V), dtype=bool)
+    on_border[ha[mine & ~glued]] = True
+    h1 = np.flatnonzero(glued & mine & (ha == v) & ~on_border[hb])[0]
+    u = hb[h1]
+    h2 = np.flatnonzero(glued & mine & (ha == u) & ~on_border[hb] & (hb != v))[0]
+    cut = glued.copy()
+    for h in (h1, h2):
+        cut[h] = cut[topo.opp[h]] = False
+    return cut, h1
+
+
+def test_extension_along_a_seam_of_either_chart_is_left_to_a_whole_flattening():
+    """A chart cut open along one edge from a vertex in the middle of the stretch has two corners there: gluing
+    along the stretch would close the cut's mouth into a hole (an annulus, not a chart). The larger chart cut: its
+    two corners at two places, the smaller chart's one corner cannot be pinned to both; the smaller chart cut: two
+    corners pinned to one place. Either way the test is undecided (the merge then flattens the union whole, whose
+    disk test refuses it: a two-edge cut closed at both ends is a hole) rather than passed."""
     s = datasets.flat_square(h=0.08)
     C = s.V[s.F].mean(axis=1)
     left = C[:, 0] > -0.3  # chart 0 (the larger) keeps its layout, chart 1 is extended over
     seg_mod, topo, glued, layouts, members, st = _two_charts(s.V, s.F, left)
-    ha, hb = topo.ends()
-    inner = hb[st][:-1]  # the stretch's vertices between two of its edges (path order not needed: any shared one)
-    inner = np.intersect1d(inner, ha[st])
-    v = int(inner[len(inner) // 2])
-    on_border = np.zeros(len(s.V), dtype=bool)
-    on_border[ha[~glued[np.arange(3 * len(s.F))] & np.isin(np.arange(3 * len(s.F)) // 3, members[0])]] = True
-    h = np.flatnonzero(glued & (ha == v) & left[np.arange(3 * len(s.F)) // 3] & ~on_border[hb])[0]
-    cut = glued.copy()
-    cut[h] = cut[topo.opp[h]] = False  # a slit of chart 0 from v to an inner vertex
-    fl = flatten_charts(topo, [members[0]], cut)
-    layouts.add([0], [members[0]], fl, [0], [True])
-    # the two corners of chart 0 at v: move the faces on one side of the slit a little
-    f = h // 3
-    Vl, Fl, vert = chart_mesh(topo, members[0], cut)
-    row = Fl[np.searchsorted(members[0], f), h % 3]
-    side = Fl == row
-    corners = 3 * members[0][:, None] + np.arange(3)
-    layouts.uv[corners[side]] += 1e-3
-    ok, undecided = seg_mod._extension_tests(topo, cut, layouts, members, [(0, 1, st)], np.inf)
-    assert undecided[0] and not ok[0]
-    layouts.add([0], [members[0]], flatten_charts(topo, [members[0]], glued), [0], [True])  # no slit
+    for c in (0, 1):
+        cut, h = _slit(topo, glued, members, c, st)
+        lay = copy.deepcopy(layouts)
+        if c == 0:  # the larger chart's layout with the cut: its two corners at v a little apart
+            lay.add([0], [members[0]], flatten_charts(topo, [members[0]], cut), [0], [True])
+            _, Fl, _ = chart_mesh(topo, members[0], cut)
+            row = Fl[np.searchsorted(members[0], h // 3), h % 3]
+            lay.uv[(3 * members[0][:, None] + np.arange(3))[Fl == row]] += 1e-3
+        ok, undecided = seg_mod._extension_tests(topo, cut, lay, members, [(0, 1, st)], np.inf)
+        assert undecided[0] and not ok[0]
+        whole = seg_mod._union_tests(topo, cut, copy.deepcopy(lay), members, [(0, 1, st)], np.inf)
+        assert not whole[0]  # not a disk
     ok, undecided = seg_mod._extension_tests(topo, glued, layouts, members, [(0, 1, st)], np.inf)
-    assert ok[0] and not undecided[0]
+    assert ok[0] and not undecided[0]  # no cut: one corner each at every vertex of the stretch

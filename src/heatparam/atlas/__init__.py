@@ -239,7 +239,7 @@ def _polish_together(topo, groups: list[np.ndarray], seg, opts: dict, limit: flo
 
     fl = flatten_charts(topo, groups, seg.glued)
     ok = fl.ok(np.inf)
-    for i in np.flatnonzero(seg.checked & (~ok | (seg.iso < fl.iso))):
+    for i in np.flatnonzero(seg.checked & fl.disk & (~ok | (seg.iso < fl.iso))):  # never a chart with a hole
         rows = fl.Fl[fl.face_start[i]:fl.face_start[i + 1]].ravel()
         fl.uv[rows] = seg.corner_uv[(3 * groups[i][:, None] + np.arange(3)).ravel()]
         ok[i] = True

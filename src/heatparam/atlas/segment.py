@@ -720,8 +720,8 @@ def _merge(topo: Topology, chart: np.ndarray, glued: np.ndarray, bound: float, l
     charts not picked yet in it and tests all their unions at once (:func:`_extension_tests`: the smaller chart laid
     out against the larger one's layout, the stretch's vertices pinned there); a merge is kept when the union's
     layout is bijective and within the bound; stops early at ``stop_at`` charts. A pair with a chart whose layout
-    was never checked, or whose extension is undecided, is tested by flattening the whole union
-    (:func:`_union_tests`).
+    was never checked, or whose extension is undecided, and every pair under a cap, is tested by flattening the
+    whole union (:func:`_union_tests`).
     (Letting a chart join up to 4 of a round's unions, one of them kept, was measured: fewer rounds, more faces
     per solve, no faster on cow or 3holes and 34-40 charts instead of 34.)"""
     opp = topo.opp
@@ -772,8 +772,11 @@ def _merge(topo: Topology, chart: np.ndarray, glued: np.ndarray, bound: float, l
         if not picked:
             break
         ok = np.zeros(len(picked), dtype=bool)
-        pinned = [p for p, (a, b, _) in enumerate(picked) if layouts.ok[a] and layouts.ok[b]]
-        whole = [p for p in range(len(picked)) if not (layouts.ok[picked[p][0]] and layouts.ok[picked[p][1]])]
+        # under a cap every union is flattened whole: the last merges toward the cap need both sides free (a torus
+        # capped at 2 charts stopped at 3 with extensions)
+        extend = [stop_at is None and layouts.ok[a] and layouts.ok[b] for a, b, _ in picked]
+        pinned = [p for p, e in enumerate(extend) if e]
+        whole = [p for p, e in enumerate(extend) if not e]
         if pinned:
             ok[pinned], undecided = _extension_tests(topo, glued, layouts, members, [picked[p] for p in pinned],
                                                      bound)
@@ -853,16 +856,24 @@ def _extension_tests(topo: Topology, glued: np.ndarray, layouts: _Layouts, membe
     fp, jp = hp // 3, hp % 3
     rows = np.concatenate([Fl[pos, kq], Fl[pos, (kq + 1) % 3]])
     vals = np.concatenate([layouts.uv[3 * fp + (jp + 1) % 3], layouts.uv[3 * fp + jp]])
-    # a row pinned twice at different places (the larger chart has two corners there: an inner seam of its own
-    # ends on the stretch) has no extension: that union is flattened whole (the caller's undecided)
-    o = np.lexsort((vals[:, 1], vals[:, 0], rows))
-    rows, vals = rows[o], vals[o]
+    # the union is a disk when the stretch is one arc of both borders: n + 1 corners of each chart along its n
+    # edges. A chart with an inner seam of its own ending on the stretch has two corners there (the smaller
+    # chart: two rows; the larger: two places, or one row pinned at two places); gluing would close the seam's
+    # mouth into a hole. Such a union is flattened whole instead (the caller's undecided: its disk test decides)
+    ha, hb = topo.ends()
+    pv = np.concatenate([ha[hs], hb[hs]])  # the vertex of each pin
+    pg = np.concatenate([hg, hg])
+    bits = vals.view(np.int64).reshape(-1, 2)
+    o = np.lexsort((bits[:, 1], bits[:, 0], pv, rows))
+    rows, vals, pv, pg, bits = rows[o], vals[o], pv[o], pg[o], bits[o]
     again = rows[1:] == rows[:-1]
-    rgroup = np.empty(len(Vl), dtype=np.int64)
-    rgroup[Fl.ravel()] = np.repeat(grp, 3)
-    ok, undecided = np.zeros(k, dtype=bool), np.zeros(k, dtype=bool)
-    undecided[rgroup[rows[1:][again & (vals[1:] != vals[:-1]).any(axis=1)]]] = True
     first = np.r_[True, ~again]
+    q_corners = np.bincount(pg[first], minlength=k)
+    o = np.lexsort((bits[:, 1], bits[:, 0], pv, pg))
+    new = np.r_[True, (pg[o][1:] != pg[o][:-1]) | (pv[o][1:] != pv[o][:-1]) | (bits[o][1:] != bits[o][:-1]).any(axis=1)]
+    p_corners = np.bincount(pg[o][new], minlength=k)
+    arc = np.bincount(hg, minlength=k) + 1
+    ok, undecided = np.zeros(k, dtype=bool), (q_corners != arc) | (p_corners != arc)
     rows, vals = rows[first], vals[first]
     try:
         res = igl.lscm(Vl, Fl, rows, vals)
