@@ -16,6 +16,7 @@ from heatparam.atlas.overlap import count_overlaps, uv_degenerate_faces
 from heatparam.atlas.pack import pack_charts
 from heatparam.atlas.repair import repair
 from heatparam.atlas.segment import (
+    Segmentation,
     Topology,
     chart_iso,
     chart_mesh,
@@ -231,7 +232,7 @@ def _segmented_part(comp, ci, bound: float, max_charts: int | None, seed: int, o
     return made, seg.stats
 
 
-def _polish_together(topo, groups: list[np.ndarray], seg, opts: dict, limit: float | None):
+def _polish_together(topo, groups: list[np.ndarray], seg: Segmentation, opts: dict, limit: float | None):
     """Every chart polished together (``refine.charts``) from the less distorted of its bijective layouts: its quick
     flattening (LSCM) and the layout the segmentation checked (``seg.corner_uv``): (the charts done as (faces, Fl,
     vert, uv, info) tuples, the indices of the others — neither layout bijective —, the polish's report)."""

@@ -14,7 +14,9 @@
    net, a cylinder's side an unrolled rectangle. A merge is tested by extending the larger chart's layout over
    the smaller one (LSCM of the smaller chart with the stretch pinned where the larger chart has it): the cost of
    a test is the smaller chart's, where flattening the whole union cost both (cow: 97k faces flattened in 556
-   tests → 21k; BENCHMARKS §21). Every chart keeps the layout its last test checked (``Segmentation.corner_uv``).
+   tests → 21k; BENCHMARKS §21); where the stretch is not one arc of both borders (a chart's own seam ends on it:
+   the union would have a hole) the union is flattened whole and its disk test decides. Every chart keeps the
+   layout its last test checked (``Segmentation.corner_uv``).
 
 A chart is a set of faces plus the half-edges glued inside it (``Segmentation.glued``).
 """
@@ -822,17 +824,16 @@ def _union_tests(topo: Topology, glued: np.ndarray, layouts: _Layouts, members: 
 
 
 def _extension_tests(topo: Topology, glued: np.ndarray, layouts: _Layouts, members: dict, picked: list,
-                     bound: float) -> np.ndarray:
+                     bound: float) -> tuple[np.ndarray, np.ndarray]:
     """Each picked pair (a, b, stretch) of checked charts tested by extending the larger chart's layout over the
     smaller: LSCM of the smaller chart alone with the stretch's vertices pinned where the larger chart has them
     (all the round's smaller charts in one solve). The union passes when no face of the smaller chart flips, its
     area-weighted isometric distortion (both charts' faces) is within ``bound`` and no two edges of its border
     cross. Cost ∝ the smaller chart, where flattening the union costs ∝ both: the large charts at the end of the
     merging are tested against each neighbour in turn (cow: 97k faces flattened in 556 tests, 21k this way). The
-    layouts of the unions that pass are kept under a's id. Returns (passed (k,) bool, undecided (k,) bool: no
-    extension exists — a row of the smaller chart pinned at two places — or the shared solve failed)."""
-    import igl
-
+    layouts of the unions that pass are kept under a's id. Returns (passed (k,) bool, undecided (k,) bool: the
+    stretch is not one arc of both charts' borders — the union would not be a disk — or the shared solve failed;
+    the caller flattens those unions whole)."""
     from heatparam.metrics import true_scale_iso
 
     opp, F = topo.opp, topo.F
