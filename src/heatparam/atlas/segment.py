@@ -391,7 +391,7 @@ def grow(topo: Topology, faces: np.ndarray, cone_deg: float, target_faces: int, 
     """Normal-cone region growing over ``faces``; each returned face array is a topological disk.
 
     The loop runs on Python lists and floats (the same arithmetic, in the same order, as numpy's on 3-vectors:
-    2.2x faster than on numpy scalars)."""
+    2.2x faster than on numpy scalars); each region's unit mean normal is kept from one growth to the next."""
     m = len(topo.F)
     Fl, opp, crease, nrm, areas = topo.lists()
     cos_cone = float(np.cos(np.radians(cone_deg)))
@@ -401,11 +401,13 @@ def grow(topo: Topology, faces: np.ndarray, cone_deg: float, target_faces: int, 
         label[f] = -1  # -1: unassigned and allowed
     regions: list[list[int]] = []
     nsum: list[list[float]] = []
+    unit: list[list[float]] = []  # nsum[r] / |nsum[r]|
     vmark: list[set] = []
     nxt = 0  # leftovers are seeded in face order: every face before order[nxt] is assigned
 
-    def dot(a, b):
-        return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    def normalized(ns: list[float]) -> list[float]:
+        length = max(math.sqrt(ns[0] * ns[0] + ns[1] * ns[1] + ns[2] * ns[2]), 1e-300)
+        return [ns[0] / length, ns[1] / length, ns[2] / length]
 
     while True:
         if not regions:
@@ -425,43 +427,49 @@ def grow(topo: Topology, faces: np.ndarray, cone_deg: float, target_faces: int, 
             label[s] = r
             regions.append([s])
             nsum.append([x * areas[s] for x in nrm[s]])
+            unit.append(normalized(nsum[r]))
             vmark.append(set(Fl[s]))
+            ns = nrm[s]
             for j in range(3):
                 o = opp[3 * s + j]
                 if o >= 0 and label[o // 3] == -1 and not crease[3 * s + j]:
-                    heapq.heappush(heap, (1.0 - dot(nrm[o // 3], nrm[s]), o // 3, r))
+                    no = nrm[o // 3]
+                    heapq.heappush(heap, (1.0 - (no[0] * ns[0] + no[1] * ns[1] + no[2] * ns[2]), o // 3, r))
         while heap:
             cost, g, r = heapq.heappop(heap)
             if label[g] != -1:
                 continue
-            ns = nsum[r]
-            length = max(math.sqrt(dot(ns, ns)), 1e-300)
-            nr = [ns[0] / length, ns[1] / length, ns[2] / length]
-            c = 1.0 - dot(nrm[g], nr)
+            nr = unit[r]
+            ng = nrm[g]
+            c = 1.0 - (ng[0] * nr[0] + ng[1] * nr[1] + ng[2] * nr[2])
             if c > cost + 1e-12:  # stale priority: requeue with the current one
                 heapq.heappush(heap, (c, g, r))
                 continue
             if 1.0 - c < cos_cone:
                 continue
             # disk rule: joined along two edges, or along one with its third vertex new to the region
-            on = [opp[3 * g + j] >= 0 and label[opp[3 * g + j] // 3] == r for j in range(3)]
-            shared = sum(on)
+            o0, o1, o2 = opp[3 * g], opp[3 * g + 1], opp[3 * g + 2]
+            on0 = o0 >= 0 and label[o0 // 3] == r
+            on1 = o1 >= 0 and label[o1 // 3] == r
+            on2 = o2 >= 0 and label[o2 // 3] == r
+            shared = on0 + on1 + on2
             vs = Fl[g]
             if shared == 1:
-                if vs[(on.index(True) + 2) % 3] in vmark[r]:
+                if vs[2 if on0 else 0 if on1 else 1] in vmark[r]:  # the vertex opposite the shared edge
                     continue
             elif shared != 2:
                 continue
             label[g] = r
             regions[r].append(g)
             a = areas[g]
-            ng = nrm[g]
+            ns = nsum[r]
             nsum[r] = [ns[0] + ng[0] * a, ns[1] + ng[1] * a, ns[2] + ng[2] * a]
+            unit[r] = normalized(nsum[r])
             vmark[r].update(vs)
-            for j in range(3):
-                o = opp[3 * g + j]
+            for j, o in enumerate((o0, o1, o2)):
                 if o >= 0 and label[o // 3] == -1 and not crease[3 * g + j]:
-                    heapq.heappush(heap, (1.0 - dot(nrm[o // 3], nr), o // 3, r))
+                    no = nrm[o // 3]
+                    heapq.heappush(heap, (1.0 - (no[0] * nr[0] + no[1] * nr[1] + no[2] * nr[2]), o // 3, r))
     lab = np.asarray(label, dtype=np.int64)
     _smooth(topo, lab, faces)
     out = [np.flatnonzero(lab == r) for r in range(len(regions))]
