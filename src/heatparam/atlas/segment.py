@@ -631,14 +631,16 @@ def segment(topo: Topology, max_distortion: float, max_charts: int | None = None
         inside = _glue_inside(topo, np.concatenate(regions))  # welded within each region only (chart_mesh's group)
         fl = flatten_charts(topo, regions, inside, bound)
         ok = fl.ok(bound)
-        kept = [i for i, reg in enumerate(regions) if ok[i] or len(reg) == 1 or cone < 2.0]
+        keep = [bool(ok[i]) or len(reg) == 1 or cone < 2.0 for i, reg in enumerate(regions)]
+        kept = [i for i, k in enumerate(keep) if k]
         layouts.add(list(range(len(charts), len(charts) + len(kept))), regions, fl, kept, [ok[i] for i in kept])
-        for i in kept:
-            glued |= _glue_inside(topo, regions[i])
-            charts.append(regions[i])
-        for i in sorted(set(range(len(regions))) - set(kept)):
-            stats["regrown"] += 1
-            work.append((regions[i], cone * 0.5))
+        for reg, k in zip(regions, keep, strict=True):
+            if k:
+                glued |= _glue_inside(topo, reg)
+                charts.append(reg)
+            else:
+                stats["regrown"] += 1
+                work.append((reg, cone * 0.5))
     chart = np.empty(m, dtype=np.int64)
     for i, c in enumerate(charts):
         chart[c] = i
@@ -671,18 +673,16 @@ class _Layouts:
             ) -> None:
         """Charts ``ids`` (faces ``charts[i]`` for i in ``which``) laid out as charts ``which`` of the flattenings
         ``fl`` (of all of ``charts``); ``ok``: each was checked."""
-        U = fl.uv[fl.Fl]
-        iso, area = _corner_iso(fl.Vl[fl.Fl], U)
+        from heatparam.metrics import true_scale_iso
+
+        iso, area, _ = true_scale_iso(fl.Vl, fl.Fl, fl.uv)  # a checked chart has no flipped face: all finite
         fg = np.repeat(np.arange(len(charts)), np.diff(fl.face_start))
-        good = np.isfinite(iso)
-        isum = np.bincount(fg, weights=np.where(good, iso, 0.0) * area, minlength=len(charts))
+        isum = np.bincount(fg, weights=np.where(np.isfinite(iso), iso, 0.0) * area, minlength=len(charts))
         asum = np.bincount(fg, weights=area, minlength=len(charts))
-        bad = np.bincount(fg, weights=~good, minlength=len(charts))
         for c, i, o in zip(ids, which, ok, strict=True):
             corners = (3 * charts[i][:, None] + np.arange(3)).ravel()
-            self.uv[corners] = U[fl.face_start[i]:fl.face_start[i + 1]].reshape(-1, 2)
-            checked = bool(o) and bad[i] == 0
-            self.isum[c], self.area[c], self.ok[c] = float(isum[i]) if checked else np.inf, float(asum[i]), checked
+            self.uv[corners] = fl.uv[fl.Fl[fl.face_start[i]:fl.face_start[i + 1]]].reshape(-1, 2)
+            self.isum[c], self.area[c], self.ok[c] = float(isum[i]) if o else np.inf, float(asum[i]), bool(o)
 
     def relabel(self, ids: np.ndarray) -> None:
         """The charts renumbered: chart i is the one that was ``ids[i]``."""
@@ -698,17 +698,6 @@ class _Layouts:
     def iso(self) -> np.ndarray:
         """(k,) per chart: the area-weighted isometric distortion of its layout (inf where not checked)."""
         return np.array([self.isum[c] / self.area[c] if self.ok[c] else np.inf for c in range(len(self.ok))])
-
-
-def _corner_iso(P: np.ndarray, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per triangle of corners P (k,3,3) and UVs U (k,3,2): max(s1, 1/s2) as laid out (inf when flipped or
-    collapsed) and the 3D area; (k,), (k,)."""
-    from heatparam.metrics import true_scale_iso
-
-    k = len(P)
-    F = np.arange(3 * k, dtype=np.int64).reshape(k, 3)
-    iso, area, _ = true_scale_iso(P.reshape(-1, 3), F, U.reshape(-1, 2))
-    return iso, area
 
 
 def _glue_inside(topo: Topology, faces: np.ndarray) -> np.ndarray:
@@ -814,15 +803,20 @@ def _merge(topo: Topology, chart: np.ndarray, glued: np.ndarray, bound: float, l
     return chart.astype(np.int64), glued, merges, tests
 
 
+def _with_stretches(topo: Topology, glued: np.ndarray, picked: list) -> np.ndarray:
+    """``glued`` (3m,) with the stretch of every picked pair (a, b, stretch) glued too, both sides (a copy)."""
+    g = glued.copy()
+    for _, _, st in picked:
+        g[st] = True
+        g[topo.opp[st]] = True
+    return g
+
+
 def _union_tests(topo: Topology, glued: np.ndarray, layouts: _Layouts, members: dict, picked: list,
                  bound: float) -> np.ndarray:
     """Each picked pair (a, b, stretch) tested by flattening the whole union (LSCM, :func:`flatten_charts`); the
     layouts of the unions that pass are kept under a's id (b's entries go stale with b). (k,) bool."""
-    opp = topo.opp
-    g = glued.copy()
-    for _, _, st in picked:
-        g[st] = True
-        g[opp[st]] = True
+    g = _with_stretches(topo, glued, picked)
     unions = [np.concatenate([members[a], members[b]]) for a, b, _ in picked]
     fl = flatten_charts(topo, unions, g, bound)
     ok = fl.ok(bound)
@@ -872,15 +866,13 @@ def _extension_tests(topo: Topology, glued: np.ndarray, layouts: _Layouts, membe
     ha, hb = topo.ends()
     pv = np.concatenate([ha[hs], hb[hs]])  # the vertex of each pin
     pg = np.concatenate([hg, hg])
-    bits = vals.view(np.int64).reshape(-1, 2)
-    o = np.lexsort((bits[:, 1], bits[:, 0], pv, rows))
-    rows, vals, pv, pg, bits = rows[o], vals[o], pv[o], pg[o], bits[o]
+    _, place = _places(pg, pv, vals)
+    p_corners = np.bincount(pg[place], minlength=k)
+    o = np.argsort(rows, kind="stable")
+    rows, vals, pg = rows[o], vals[o], pg[o]
     again = rows[1:] == rows[:-1]
     first = np.r_[True, ~again]
     q_corners = np.bincount(pg[first], minlength=k)
-    o = np.lexsort((bits[:, 1], bits[:, 0], pv, pg))
-    new = np.r_[True, (pg[o][1:] != pg[o][:-1]) | (pv[o][1:] != pv[o][:-1]) | (bits[o][1:] != bits[o][:-1]).any(axis=1)]
-    p_corners = np.bincount(pg[o][new], minlength=k)
     arc = np.bincount(hg, minlength=k) + 1
     ok, undecided = np.zeros(k, dtype=bool), (q_corners != arc) | (p_corners != arc)
     rows, vals = rows[first], vals[first]
@@ -910,12 +902,24 @@ def _extension_tests(topo: Topology, glued: np.ndarray, layouts: _Layouts, membe
     return cand, undecided
 
 
+def _places(group: np.ndarray, vertex: np.ndarray, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Corners (group (N,), mesh vertex (N,), UV (N,2)) told apart by where they are: corners welded in one chart
+    carry bit-identical UVs, so (group, vertex, UV bits) names a chart row. Returns each corner's place id (N,),
+    numbered in (group, vertex, UV bits) order, and the first corner of each place."""
+    bits = np.ascontiguousarray(uv).view(np.int64).reshape(-1, 2)
+    o = np.lexsort((bits[:, 1], bits[:, 0], vertex, group))
+    change = np.r_[True, (group[o][1:] != group[o][:-1]) | (vertex[o][1:] != vertex[o][:-1])
+                   | (bits[o][1:] != bits[o][:-1]).any(axis=1)]
+    ids = np.empty(len(o), dtype=np.int64)
+    ids[o] = np.cumsum(change) - 1
+    return ids, o[change]
+
+
 def _border_crossings(topo, glued, layouts, members, picked, big, qf, grp, Uq, which) -> np.ndarray:
     """Pairs of crossing border edges of each union in ``which`` (its larger chart at ``layouts``, its smaller
     chart's faces ``qf`` of group ``grp`` at the corner UVs ``Uq`` (len(qf),3,2)); (which.sum(),). The larger
     chart's border crosses nothing of its own: only pairs with a new edge can cross, so of its edges only those
     within the new edges' bounding box are checked."""
-    opp = topo.opp
     idx = np.flatnonzero(which)
     k = len(idx)
     sel = np.isin(grp, idx)
@@ -927,11 +931,7 @@ def _border_crossings(topo, glued, layouts, members, picked, big, qf, grp, Uq, w
     new = np.r_[np.zeros(len(fb), dtype=bool), np.ones(len(gq), dtype=bool)]
     C = layouts.uv.copy()
     C[(3 * qf[sel, None] + np.arange(3)).ravel()] = Uq[sel].reshape(-1, 2)
-    inner = glued.copy()
-    for i in idx:
-        st = picked[i][2]
-        inner[st] = True
-        inner[opp[st]] = True
+    inner = _with_stretches(topo, glued, [picked[i] for i in idx])
     h = (3 * faces[:, None] + np.arange(3)).ravel()
     hgroup, hnew = np.repeat(fgroup, 3), np.repeat(new, 3)
     border = ~inner[h]
@@ -946,14 +946,10 @@ def _border_crossings(topo, glued, layouts, members, picked, big, qf, grp, Uq, w
     ha, hb = topo.ends()
     # endpoints: one index per (union, vertex, place): welded corners have bit-identical UVs
     pts = np.concatenate([A, B])
-    bits = pts.view(np.int64).reshape(-1, 2)
-    vkey = np.concatenate([hgroup, hgroup]) * len(topo.V) + np.concatenate([ha[h], hb[h]])
-    o = np.lexsort((bits[:, 1], bits[:, 0], vkey))
-    change = np.r_[True, (vkey[o][1:] != vkey[o][:-1]) | (bits[o][1:] != bits[o][:-1]).any(axis=1)]
-    ids = np.empty(len(o), dtype=np.int64)
-    ids[o] = np.cumsum(change) - 1
-    P = pts[o[change]]
+    pgroup = np.concatenate([hgroup, hgroup])
+    ids, first = _places(pgroup, np.concatenate([ha[h], hb[h]]), pts)
+    P = pts[first]
     E = ids.reshape(2, -1).T
-    pg = vkey[o[change]] // len(topo.V)
+    pg = pgroup[first]
     return _crossings_per_chart(P, None, E[:, 0], E[:, 1], np.ones(len(E), dtype=bool), pg,
                                 np.ones(k, dtype=bool), k)

@@ -306,8 +306,8 @@ def _chart_steps(x: np.ndarray, d: np.ndarray, J: np.ndarray, D: np.ndarray, w_s
         grow &= 2 * t <= tmax
     edges = groups.edges
     check = np.arange(len(edges))  # the edges whose pairs can cross: all, then those near the charts just moved
+    P = x + np.append(t, 0.0)[groups.vertex][:, None] * d
     for i in range(halvings + 2):
-        P = x + np.append(t, 0.0)[groups.vertex][:, None] * d
         pairs = check[crossing_pairs(P, edges[check])]
         if not len(pairs):
             break
@@ -346,7 +346,6 @@ class ChartGroups(NamedTuple):
     k: int
     edges: np.ndarray
     edge: np.ndarray
-
     weight: np.ndarray
 
     @classmethod
