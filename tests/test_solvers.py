@@ -30,15 +30,20 @@ def _drop_pair(A: sp.spmatrix, r: int, c: int) -> sp.csc_matrix:
     return A
 
 
-def test_on_union_places_values_and_keeps_the_old_pattern():
+def test_within_places_values_on_the_old_pattern_or_refuses():
     P = sp.csr_matrix(np.array([[1.0, 2.0, 0.0], [0.0, 3.0, 4.0], [0.0, 0.0, 5.0]]))
-    T = sp.csr_matrix(np.array([[7.0, 0.0, 8.0], [0.0, 9.0, 0.0], [0.0, 0.0, 6.0]]))
-    U = solvers.on_union(P, T)
-    assert U.nnz == 6  # P's 5 entries and T's (0,2)
+    T = sp.csr_matrix(np.array([[7.0, 0.0, 0.0], [0.0, 9.0, 0.0], [0.0, 0.0, 6.0]]))  # within P's pattern
+    U = solvers.within(P, T)
+    assert U.nnz == P.nnz and np.array_equal(U.indices, P.indices) and np.array_equal(U.indptr, P.indptr)
     assert np.array_equal(U.toarray(), T.toarray())  # T's values; explicit zeros at (0,1) and (1,2)
-    assert U.indices[U.indptr[0] : U.indptr[1]].tolist() == [0, 1, 2]
-    assert U.indices[U.indptr[1] : U.indptr[2]].tolist() == [1, 2]
-    assert solvers.on_union(P, P).nnz == P.nnz
+    assert solvers.within(P, P).nnz == P.nnz
+    T2 = sp.csr_matrix(np.array([[7.0, 0.0, 8.0], [0.0, 9.0, 0.0], [0.0, 0.0, 6.0]]))  # (0,2): not in P
+    assert T2.nnz <= P.nnz and solvers.within(P, T2) is None
+    T3 = sp.csr_matrix(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 9.0]]))  # P's last entry alone
+    assert np.array_equal(solvers.within(P, T3).toarray(), T3.toarray())
+    T4 = sp.csr_matrix(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))  # (2,0): not in P
+    assert solvers.within(P, T4) is None
+    assert solvers.within(P, sp.csr_matrix(np.ones((3, 3)))) is None  # more entries than P
 
 
 @pytest.mark.skipif("pardiso" not in available_backends(), reason="pypardiso not installed")

@@ -447,13 +447,17 @@ def cap_from_tutte():
     return s, g, area, [disk.outer, *disk.holes], tutte.tutte(s.V, disk)[: len(s.V)]
 
 
-def test_multilevel_paused_at_its_coarse_level_finishes_as_if_never_paused(cap_from_tutte, monkeypatch):
+@pytest.mark.parametrize("provisional_fine", [False, True])
+def test_multilevel_paused_at_its_coarse_level_finishes_as_if_never_paused(cap_from_tutte, monkeypatch,
+                                                                          provisional_fine):
     """``multilevel_polish(pause_excess, pause_coarse)``: the coarse polish pauses (an iteration gains < 3% of its
-    excess), the fine polish goes on from its prolongation (a provisional, bijective map, reported as paused);
-    finishing drops that, finishes the coarse level and polishes the fine level again: the very layout and report of
-    a multilevel polish that never paused."""
+    excess); the provisional map is its prolongation (bijective, reported as paused), waiting unpolished
+    (``PROVISIONAL_FINE`` False, the default) or polished on until the fine level's own pause (True); finishing
+    drops that, finishes the coarse level and polishes the fine level again: the very layout and report of a
+    multilevel polish that never paused."""
     s, g, area, loops, x0 = cap_from_tutte
     monkeypatch.setattr(multilevel, "COARSE_MIN", 1500)  # 6863 vertices, 466 on the boundary
+    monkeypatch.setattr(multilevel, "PROVISIONAL_FINE", provisional_fine)
     kw = dict(min_vertices=len(s.V), max_iters=200, tol=1e-6, backend="auto")
     ref, ml_ref = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
     run, ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, pause_excess=0.03, pause_coarse=1.0, **kw)
@@ -461,7 +465,11 @@ def test_multilevel_paused_at_its_coarse_level_finishes_as_if_never_paused(cap_f
     assert start.bijectivity(run.x, s.F, g) == (0, 0)
     coarse_its, fine_its = ml["coarse_polish"]["iterations"], run.fine.it
     assert ml["coarse_polish"]["stop"] == "paused" and coarse_its < ml_ref["coarse_polish"]["iterations"]
-    assert not run.run(pause_excess=0.03) and run.fine.it > fine_its  # a pause asked again: the provisional map
+    assert (fine_its > 0) == provisional_fine
+    rep = run.report()  # a finite energy also before any fine iteration (JSON has no NaN)
+    assert np.isfinite(rep["energy_start"]) and np.isfinite(rep["energy_end"]) and rep["iterations"] == fine_its
+    # a pause asked again: the provisional map goes on (True) or keeps waiting (False)
+    assert not run.run(pause_excess=0.03) and (run.fine.it > fine_its) == provisional_fine
     fine_its = run.fine.it
     assert run.run() and run.done
     assert np.array_equal(run.x, ref.x)

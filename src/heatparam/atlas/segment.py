@@ -6,7 +6,9 @@
    topological disk (it touches the chart along one edge with its third vertex new, or along two edges).
    Faces left over seed further rounds.
 2. Each region is checked by a quick flattening (LSCM at true area): a region whose map has a flipped face,
-   crossing boundaries or isometric distortion above the bound is grown again with a narrower cone.
+   crossing boundaries or isometric distortion above the bound is split — grown again at the same cone from
+   ``SPLIT_SEEDS`` farthest seeds of its own (with half the cone when it stays one piece) — and its pieces are
+   checked in turn (the paper's future work b: split where the flattening is not bijective or exceeds the bound).
 3. Merging (the paper's future work turned around: a merge is kept only while the flattening stays bijective and
    within the bound): neighbouring charts are glued along one stretch of their common border (longest first;
    stretches end at cone points, vertices of large angle defect such as a cube's corners), the rest of the
@@ -44,6 +46,12 @@ DEFAULT_CONE = 60.0  # degrees: normal-cone half angle of a grown region
 DEFAULT_CREASE = 60.0  # degrees: dihedral angle above which an edge is a crease (never crossed while growing)
 CONE_DEFECT = 0.3  # radians: vertices with a larger |angle defect| end a glued stretch (cube corners: pi/2)
 RETRY_GROWTH = 1.25  # a failed merge is tried again once one side has grown by this factor
+#: A region that fails its check is grown again at the same cone from this many farthest seeds of its own. Until
+#: 2026-12-04 it was grown again with half the cone (one seed, leftovers seeding more), which shattered cow's two
+#: largest failing regions (1275 and 1142 faces) into 53 and 48 pieces for the merge to glue back: cow 402 grown
+#: regions and 551 merge tests → 220 and 313, 35 → 30 charts, seam/√A 18.37 → 16.56, iso mean 1.0255 → 1.0313;
+#: 3holes 15 → 12 charts, 13.79 → 10.70 (BENCHMARKS §22)
+SPLIT_SEEDS = 3
 PROXY_SLACK = 1.5  # the LSCM proxy's distortion excess may exceed the bound's excess by this factor
 
 
@@ -463,8 +471,10 @@ def grow(topo: Topology, faces: np.ndarray, cone_deg: float, target_faces: int, 
             regions[r].append(g)
             a = areas[g]
             ns = nsum[r]
-            nsum[r] = [ns[0] + ng[0] * a, ns[1] + ng[1] * a, ns[2] + ng[2] * a]
-            unit[r] = normalized(nsum[r])
+            x, y, z = ns[0] + ng[0] * a, ns[1] + ng[1] * a, ns[2] + ng[2] * a
+            nsum[r] = [x, y, z]
+            length = max(math.sqrt(x * x + y * y + z * z), 1e-300)  # normalized(), inlined: the loop's hot spot
+            unit[r] = [x / length, y / length, z / length]
             vmark[r].update(vs)
             for j, o in enumerate((o0, o1, o2)):
                 if o >= 0 and label[o // 3] == -1 and not crease[3 * g + j]:
@@ -623,24 +633,32 @@ def segment(topo: Topology, max_distortion: float, max_charts: int | None = None
     charts: list[np.ndarray] = []
     layouts = _Layouts(m)
     stats = {"grown": 0, "regrown": 0, "merges": 0, "merge_tests": 0}
-    work = [(np.arange(m), cone_deg)]
-    while work:
-        faces, cone = work.pop()
-        regions = grow(topo, faces, cone, target_faces, seed)
+    work = [(np.arange(m), cone_deg, target_faces, False)]
+    while work:  # one generation at a time: its regions checked in one flattening (one LSCM solve)
+        regions, cones = [], []
+        for faces, cone, target, split in work:
+            grown = grow(topo, faces, cone, target, seed)
+            while split and len(grown) == 1 and cone >= 2.0:  # a failed region that did not split (the border
+                cone *= 0.5  # straightening can empty a tiny piece): a narrower cone
+                grown = grow(topo, faces, cone, target, seed)
+            regions += grown
+            cones += [cone] * len(grown)
+        work = []
         stats["grown"] += len(regions)
         inside = _glue_inside(topo, np.concatenate(regions))  # welded within each region only (chart_mesh's group)
         fl = flatten_charts(topo, regions, inside, bound)
         ok = fl.ok(bound)
-        keep = [bool(ok[i]) or len(reg) == 1 or cone < 2.0 for i, reg in enumerate(regions)]
+        keep = [bool(ok[i]) or len(reg) == 1 or cone < 2.0 for i, (reg, cone) in enumerate(zip(regions, cones,
+                                                                                                 strict=True))]
         kept = [i for i, k in enumerate(keep) if k]
         layouts.add(list(range(len(charts), len(charts) + len(kept))), regions, fl, kept, [ok[i] for i in kept])
-        for reg, k in zip(regions, keep, strict=True):
+        for reg, cone, k in zip(regions, cones, keep, strict=True):
             if k:
                 glued |= _glue_inside(topo, reg)
                 charts.append(reg)
             else:
                 stats["regrown"] += 1
-                work.append((reg, cone * 0.5))
+                work.append((reg, cone, -(-len(reg) // SPLIT_SEEDS), True))  # SPLIT_SEEDS seeds of its own
     chart = np.empty(m, dtype=np.int64)
     for i, c in enumerate(charts):
         chart[c] = i

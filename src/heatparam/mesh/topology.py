@@ -151,8 +151,15 @@ def loop_length(V: np.ndarray, loop: np.ndarray) -> float:
     return float(np.linalg.norm(V[loop] - V[np.roll(loop, -1)], axis=1).sum())
 
 def unique_edges(F: np.ndarray) -> np.ndarray:
-    """(e,2) int64: every edge of the triangles once, as (smaller, larger) vertex index, sorted."""
-    return np.unique(np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1), axis=0)
+    """(e,2) int64: every edge of the triangles once, as (smaller, larger) vertex index, sorted (by
+    :func:`unique_ints` on one key per edge: ``np.unique(axis=0)`` took 3.4 s on beetle upsampled's 1.9M half-edges,
+    this 0.1 s)."""
+    E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]).astype(np.int64), axis=1)
+    if not len(E):
+        return E.reshape(0, 2)
+    n = int(E.max()) + 1
+    key = unique_ints(E[:, 0] * n + E[:, 1])
+    return np.column_stack([key // n, key % n])
 
 # ----------------------------------------------------------------------------------------------------------
 # seams: cutting holes open to the border

@@ -142,14 +142,15 @@ def _check_memory(n: int, m: int, opts: Options) -> None:
 
 
 def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = False,
-            starts: dict[str, np.ndarray] | None = None, pause_excess: float = 0.0, pause_coarse: float = 0.0
-            ) -> Flat:
+            starts: dict[str, np.ndarray] | None = None, pause_excess: float = 0.0, pause_coarse: float = 0.0,
+            pause_park: bool = True) -> Flat:
     """The stages on one surface (``seamed``: cut open by the seams stage, whose seams a fill would close again;
     ``starts``: further named start layouts (n,2) for the refinement, e.g. the uncut map with its slits opened;
     ``pause_excess`` > 0: the polish may pause once an iteration gains less than that fraction of the energy's
     excess over an isometry, and the Flat's ``resume`` finishes it: the seams stage decides on paused maps;
     ``pause_coarse`` > 0: its coarse levels may pause too while their iso mean exceeds it,
-    ``refine.multilevel.Levels``).
+    ``refine.multilevel.Levels``; ``pause_park`` False: the paused fine polish keeps its factorization, for a trial
+    that is usually finished next).
     """
     from heatparam.refine import Refinement, RefineParams
 
@@ -162,7 +163,7 @@ def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = Fals
         """The refinement from the conformal layout or Tutte, the heat stage not computed (``why``)."""
         with prog.stage("refine"):
             rf = Refinement(surface.V, surface.F, None, params, prog, surface.conformal, check.lscm,
-                            surface.gradients(), starts, pause_excess, pause_coarse)
+                            surface.gradients(), starts, pause_excess, pause_coarse, pause_park)
         return _refined(surface, opts, prog, rf, None, why, fill, None, warnings)
 
     if check.skipped is not None:
@@ -185,7 +186,7 @@ def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = Fals
         return Flat(m.uv, summary, method, m.layout, m.fill_surface, m.warnings)
     with prog.stage("refine"):
         rf = Refinement(surface.V, surface.F, m.uv, params, prog, surface.conformal, check.lscm,
-                        surface.gradients(), starts, pause_excess, pause_coarse)
+                        surface.gradients(), starts, pause_excess, pause_coarse, pause_park)
     return _refined(surface, opts, prog, rf, m.layout, None, m.fill, m.fill_surface, m.warnings)
 
 

@@ -110,7 +110,10 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat,
             x, rep["uncut_start"] = open_slits(flat.uv[src], Fs, src)
         if x is not None:
             starts["uncut"] = x
-    cut = flatten(cut_surface, opts, prog, True, starts or None, seam_pause(surface, opts)[0])
+    # the cut map, when paused, keeps its factorization: it is usually kept and finished next (beetle upsampled to
+    # 311k: 4.5 s to rebuild the factorization and the Hessian's pattern after a pause); when the map without seams
+    # is kept instead, the cut map is dropped (its factorization with it) before that one is finished
+    cut = flatten(cut_surface, opts, prog, True, starts or None, seam_pause(surface, opts)[0], pause_park=False)
     if opts.seams == "auto":
         better, flat, cut = _decide(flat, cut)
     else:
@@ -196,7 +199,8 @@ def _decide(flat: Flat, cut: Flat) -> tuple[bool, Flat, Flat]:
                 return False, flat, cut
         elif flat.resume is None and cut.resume is None:
             break
-        flat, cut = _finished(flat), _finished(cut)
+        cut = _finished(cut)  # first: it may hold its factorization (not parked), which finishing frees
+        flat = _finished(flat)
     better = cut.summary["bijective"] and (not flat.summary["bijective"]
                                            or cut.summary["iso_mean"] <= flat.summary["iso_mean"] * (1 - SEAM_MIN_GAIN))
     return better, flat, cut

@@ -101,15 +101,16 @@ class Refinement:
     ``run(pause_excess)``: it returns False when the polish paused (an iteration gained less than
     ``pause_excess`` of the energy's excess over an isometry, :class:`newton.Polish`; with ``pause_coarse`` > 0
     the coarse levels may pause too while their iso mean exceeds it, :class:`multilevel.Levels`), and ``run()``
-    goes on to the very layout of an uninterrupted refine. ``x`` (n,2) is the current layout (bijective at every
-    pause), ``report()`` the report so far (``polish.stop`` "paused" while paused), ``done`` whether the polish
-    stopped."""
+    goes on to the very layout of an uninterrupted refine; ``pause_park`` False keeps the fine polish's
+    factorization while it is paused (:class:`newton.Polish`'s ``park``). ``x`` (n,2) is the current layout
+    (bijective at every pause), ``report()`` the report so far (``polish.stop`` "paused" while paused), ``done``
+    whether the polish stopped."""
 
     def __init__(self, V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefineParams | None = None,
                  progress=None, conformal: Callable[[], np.ndarray] | None = None, lscm: LscmStart | None = None,
                  surface: tuple[np.ndarray, np.ndarray] | None = None,
                  extra_starts: dict[str, np.ndarray] | None = None, pause_excess: float = 0.0,
-                 pause_coarse: float = 0.0):
+                 pause_coarse: float = 0.0, pause_park: bool = True):
         t0 = time.perf_counter()
         params = RefineParams() if params is None else params
         self.F, self.progress = F, progress
@@ -123,7 +124,7 @@ class Refinement:
             self.polish, self._report["multilevel"] = multilevel_polish(
                 V, F, x, disk.loops, g, area, min_vertices=params.multilevel, max_iters=params.max_iters,
                 tol=params.tol, backend=params.solver, progress=progress, pause_excess=pause_excess,
-                pause_coarse=pause_coarse)
+                pause_coarse=pause_coarse, park=pause_park)
         self.seconds = time.perf_counter() - t0
 
     @property

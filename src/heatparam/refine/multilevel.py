@@ -14,7 +14,7 @@ from heatparam.layout.tutte import mean_value_laplacian
 from heatparam.mesh.planar import make_ccw, triangulate
 from heatparam.mesh.topology import face_areas
 from heatparam.refine.energy import det, jacobians, normalized_energy, surface_gradients
-from heatparam.refine.newton import Polish
+from heatparam.refine.newton import STALL_ITERS, Polish
 from heatparam.refine.scaffold import loop_edges, loop_ranges
 from heatparam.refine.untangle import untangle
 
@@ -66,6 +66,29 @@ FINE_SCAFFOLD = True
 #: 10.3-11.1 s (its kept scaffold already held); halftunnel's uncut map (400-vertex threshold) switched at once
 #: and ended where the scaffolded polish did (BENCHMARKS §20)
 FINE_BARE = True
+
+#: After a coarse level that stalled at the barrier the fine polish starts stiff (``FINE_SCAFFOLD``'s note) but also
+#: keeps its scaffold while that holds: beetle upsampled to 311k, its cut map's fine level, the same 5 iterations to
+#: 7 digits of energy (1.0025490 → 1.0006873) in 19.5 s instead of ~25 s, each iteration's PARDISO refactorization
+#: in place instead of a new analysis for each re-triangulated scaffold (BENCHMARKS §22)
+FINE_KEEP_AFTER_STALL = True
+
+#: The levels of a coarse-to-fine polish give up after fewer barrier-limited iterations in a row that gain < tol
+#: than a single-level polish (``newton.Polish``'s ``stall_iters``; ``newton.STALL_ITERS`` = 5): a coarse level after
+#: ``COARSE_STALL_ITERS``, the fine level polished from one after ``FINE_STALL_ITERS``. There the crawl is slit
+#: sides or a boundary pressing against the scaffold's barrier: beetle upsampled to 311k, its cut map's 52k coarse
+#: level made 6 such iterations (1.0006576 → 1.0006565) and its fine level 5 after the first cut short (4.6-10 s
+#: each, 1.0007033 → 1.0006733; 109 → 66 s end to end with ``PROVISIONAL_FINE``, BENCHMARKS §22). A coarse level
+#: keeps one more: its end is prolongated, and stopped right after a cut-short step (2) it gave a fine start of
+#: energy 1.00507 instead of 1.00255 (3)
+COARSE_STALL_ITERS = 3
+FINE_STALL_ITERS = 1
+
+#: While the seams stage decides on paused maps, a coarse level that paused is prolongated and the fine level waits
+#: there, unpolished (the provisional map is the prolongation; :class:`Levels`). True: the fine level is polished
+#: from it until its own pause, as before stop 27 (beetle upsampled to 311k: 2 fine iterations, 15 s, for a map the
+#: seams stage dropped; BENCHMARKS §22)
+PROVISIONAL_FINE = False
 
 
 def coarse_vertices(V: np.ndarray, F: np.ndarray, loops: list[np.ndarray], target: int) -> np.ndarray:
@@ -229,7 +252,8 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
     crun, cml = multilevel_polish(V[ids], T, x[ids], cloops, gc, ac, min_vertices=min_vertices,
                                   max_iters=max_iters, tol=tol, backend=backend, progress=progress,
                                   guards=local[ears], label=f"coarse, {len(ids)} vertices",
-                                  pause_excess=pause_excess if pause_coarse > 0 else 0.0, pause_coarse=pause_coarse)
+                                  pause_excess=pause_excess if pause_coarse > 0 else 0.0, pause_coarse=pause_coarse,
+                                  level=True)
     info["guards"] = int(len(ears))
 
     def coarse_iso() -> float:
@@ -296,14 +320,18 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
 def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.ndarray], g: np.ndarray,
                       area: np.ndarray, *, min_vertices: int, max_iters: int, tol: float, backend: str,
                       progress=None, guards: np.ndarray | None = None, label: str = "Newton",
-                      pause_excess: float = 0.0, pause_coarse: float = 0.0) -> tuple[Polish | Levels, dict]:
+                      pause_excess: float = 0.0, pause_coarse: float = 0.0, level: bool = False, park: bool = True
+                      ) -> tuple[Polish | Levels, dict]:
     """:func:`polish` of (V (n,3), F (m,3)) from the bijective layout ``x`` (n,2); coarse-to-fine
     (:func:`coarse_to_fine`) when the mesh has >= ``min_vertices`` (> 0) vertices and ``x`` is more than
     ``MULTILEVEL_MIN_EXCESS`` above an isometry. After a converged coarse level the polish stops at
     ``MULTILEVEL_FINE_TOL_FACTOR`` × ``tol``. ``pause_excess`` > 0: the fine polish pauses once an iteration gains
     less than that fraction of the energy's excess (:class:`newton.Polish`; :func:`run_polish` goes on), and with
     ``pause_coarse`` > 0 so may the coarse levels while their maps' iso mean exceeds it (:func:`coarse_to_fine`,
-    :class:`Levels`).
+    :class:`Levels`). ``level``: this mesh is a coarse level of another (its polish stops after
+    ``COARSE_STALL_ITERS`` barrier-limited iterations, a fine level polished from a coarse one after
+    ``FINE_STALL_ITERS``); ``park``:
+    :class:`newton.Polish`'s (False: a pause keeps the factorization).
     Returns (the fine level's :class:`newton.Polish` or :class:`Levels`: its layout ``x`` (n,2) and ``report()``,
     coarse-to-fine report; the report is updated in place when a paused coarse level is finished)."""
     y, finish = None, None
@@ -320,19 +348,25 @@ def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[n
             ml = {"used": False, "reason": f"coarse level failed: {exc}"}
 
     def fine(y: np.ndarray | None) -> Polish:
-        ftol, weight, keep = tol, 1.0, False
+        ftol, weight, keep, bare = tol, 1.0, False, False
         if y is not None:
-            if ml["coarse_polish"]["converged"] or ml["coarse_polish"]["stop"] == "stalled at the barrier":
+            cp = ml["coarse_polish"]
+            converged, stalled = cp["converged"], cp["stop"] == "stalled at the barrier"
+            if converged or stalled:
                 ftol *= MULTILEVEL_FINE_TOL_FACTOR
-            if ml["coarse_polish"]["converged"] and FINE_SCAFFOLD:
+            if converged and FINE_SCAFFOLD:
                 # the boundary is where the coarse polish left it: no stiff scaffold to relax first, and little
                 # for a new scaffold to follow (not after a stall at the barrier: boundaries there still push)
-                weight, keep = ml["coarse_polish"]["scaffold_weight"], True
+                weight, keep, bare = ml["coarse_polish"]["scaffold_weight"], True, FINE_BARE
+            elif stalled and FINE_KEEP_AFTER_STALL:
+                keep = True  # stiff, but the scaffold is kept while it holds
             ml["fine_tol"] = ftol
         # open-ended: Newton stops when converged (5-50 iterations measured), far below the cap
         return Polish(x if y is None else y, F, g, area, loops, max_iters=max_iters, tol=ftol, backend=backend,
                       guards=guards, scaffold_weight=weight, keep_scaffold=keep,
-                      scaffold="until crossing" if (keep and FINE_BARE) else True)
+                      scaffold="until crossing" if bare else True,
+                      stall_iters=COARSE_STALL_ITERS if level else FINE_STALL_ITERS if y is not None else STALL_ITERS,
+                      park=park)
 
     run: Polish | Levels = fine(y)
     if finish is not None:
@@ -353,11 +387,11 @@ class Levels:
     """A fine polish started from a coarse level that paused (:func:`multilevel_polish` with ``pause_excess`` and
     ``pause_coarse``), with :class:`newton.Polish`'s interface (``x``, ``done``, ``run``, ``report``, ``bar``).
 
-    While pauses are asked for, the fine polish from the paused coarse layout goes on: a provisional map, which the
-    seams stage reads where it pauses. Finishing (``run()`` without a pause) first finishes the coarse level,
-    prolongates its end again and polishes the fine level from there: the very layout of a multilevel polish that
-    never paused (the provisional fine iterations are dropped; the report's ``multilevel.provisional`` counts
-    them). ``fine`` is the current fine :class:`newton.Polish`."""
+    While pauses are asked for, the provisional map is the paused coarse level's prolongation, which the seams stage
+    reads (``PROVISIONAL_FINE`` True: the fine polish goes on from there until its own pause). Finishing (``run()``
+    without a pause) first finishes the coarse level, prolongates its end again and polishes the fine level from
+    there: the very layout of a multilevel polish that never paused (any provisional fine iterations are dropped;
+    the report's ``multilevel.provisional`` counts them). ``fine`` is the current fine :class:`newton.Polish`."""
 
     def __init__(self, fine: Polish, finished: Callable[[Polish], Polish]):
         self.fine, self._finished, self.bar = fine, finished, None
@@ -374,7 +408,7 @@ class Levels:
         if self._finished is not None:
             if pause_excess <= 0.0:
                 self.fine, self._finished = self._finished(self.fine), None
-            elif self.fine.done:  # the provisional polish has stopped: nothing to go on with
+            elif self.fine.done or not PROVISIONAL_FINE:  # the provisional polish has stopped, or waits
                 return False
         self.fine.bar = self.bar
         try:

@@ -175,6 +175,9 @@ class HessianPattern:
         per face) never exist for all faces at once."""
         m = len(J)
         chunk = ASSEMBLY_CHUNK if chunk is None else chunk
+        if m <= chunk:  # one chunk: the sums of np.bincount, as matrix(), without np.add.at's per-entry cost
+            grad, blocks = sd_newton_blocks(J, g, w)
+            return grad, self.matrix(blocks.reshape(m, 36))
         grad = np.empty((m, 2, 2))
         data = np.zeros(self.slots)
         for a in range(0, m, chunk):
@@ -457,13 +460,19 @@ class Polish:
     edges cross (``_chart_steps``): for many small charts polished together (``refine.charts``; BENCHMARKS §20).
     ``scaffold="until crossing"``: without one while no boundary crosses at the line search's step (no halving),
     then that iteration again and the rest with the scaffold (``report()["scaffold_from_iteration"]``, None if
-    never): for a fine level after a converged coarse one, whose boundary stays put (``multilevel.FINE_BARE``)."""
+    never): for a fine level after a converged coarse one, whose boundary stays put (``multilevel.FINE_BARE``).
+    ``stall_iters``: barrier-limited iterations in a row that gain < ``tol`` before it gives up (the levels of a
+    coarse-to-fine polish stop sooner: ``multilevel.COARSE_STALL_ITERS``). ``park`` False: a pause keeps the
+    factorization and the Hessian's pattern (for the last of the seams stage's trials, which is usually finished
+    right after: ``pipeline.seams``); True frees them while paused (:meth:`_park`)."""
 
     def __init__(self, uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray], *,
                  max_iters: int = 200, tol: float = 1e-6, backend: str = "auto", bar=None,
                  guards: np.ndarray | None = None, excess_tol: float = 0.0, scaffold_weight: float = 1.0,
-                 keep_scaffold: bool = False, scaffold: bool | str = True, groups: np.ndarray | None = None):
+                 keep_scaffold: bool = False, scaffold: bool | str = True, groups: np.ndarray | None = None,
+                 stall_iters: int = STALL_ITERS, park: bool = True):
         t0 = time.perf_counter()
+        self.stall_iters, self.park = stall_iters, park
         self.keep_scaffold = keep_scaffold
         self.F, self.g, self.loops, self.bar, self.tol, self.excess_tol = F, g, loops, bar, tol, excess_tol
         n = len(uv)
@@ -589,7 +598,7 @@ class Polish:
                 if t >= full_step and self.scaffold and self.w_scaf > self.w_min:
                     self.w_scaf = self.w_min
                     continue
-                if t >= full_step or self.small >= STALL_ITERS:
+                if t >= full_step or self.small >= self.stall_iters:
                     self.hist.append(Es1)
                     self.converged = t >= full_step
                     self.stop = "converged" if t >= full_step else "stalled at the barrier"
@@ -600,7 +609,8 @@ class Polish:
             self.w_scaf = (max(self.w_scaf / SCAFFOLD_ADAPT, self.w_min) if t >= full_step
                            else min(self.w_scaf * SCAFFOLD_ADAPT, self.w_max))
             if pause_excess > 0 and gain < pause_excess * (Es1 - 4.0):
-                self._park()
+                if self.park:
+                    self._park()
                 return False
         self.done = True
         self.fac = self.pat = self._H_last = None  # stopped: nothing more to solve
@@ -608,10 +618,10 @@ class Polish:
 
     def report(self) -> dict:
         """The JSON-able report (``stop`` says "paused" while the polish has not stopped)."""
-        hist = self.hist
+        hist = self.hist or [self.Es]  # no iteration yet (a fine level waiting paused: ``multilevel.Levels``)
         return {"iterations": self.it, "converged": self.converged, "stop": self.stop if self.done else "paused",
-                "energy_start": float(hist[0] / 4 if hist else np.nan),
-                "energy_end": float((hist[-1] if self.done or not hist else self.Es) / 4 if hist else np.nan),
+                "energy_start": float(hist[0] / 4),
+                "energy_end": float((hist[-1] if self.done else self.Es) / 4),
                 "factorizations": self.refactorizations, "backend": self.backend,
                 "scaffold_weight": self.w_scaf / self.w_max, "seconds": round(self.seconds, 3),
                 **({"scaffold_from_iteration": self.crossing_switch} if self.scaffold_after_crossing else {})}
