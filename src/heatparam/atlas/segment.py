@@ -498,8 +498,12 @@ def _smooth(topo: Topology, label: np.ndarray, faces: np.ndarray, passes: int = 
         nb = np.where(topo.crease[h], -3, nb)
         own = label[faces][:, None]
         same = (nb == own).sum(axis=1)
+        other = (nb >= 0) & (nb != own)
+        # a region other than its own on two of its edges (as the loop's first test below, vectorized)
+        pair = ((other[:, 0] & (nb[:, 0] == nb[:, 1])) | (other[:, 0] & (nb[:, 0] == nb[:, 2]))
+                | (other[:, 1] & (nb[:, 1] == nb[:, 2])))
         moved = 0
-        for r in np.flatnonzero(same <= 1):
+        for r in np.flatnonzero((same <= 1) & pair):
             f = faces[r]
             cand = nb[r][(nb[r] >= 0) & (nb[r] != label[f])]
             if len(cand) < 2:
