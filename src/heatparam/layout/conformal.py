@@ -51,7 +51,10 @@ def _conformal_energy(V: np.ndarray, F: np.ndarray) -> tuple[sp.csc_matrix, np.n
     c = np.concatenate([j + n, i, i + n, j])
     w = np.repeat([0.25, 0.25, -0.25, -0.25], len(i))
     M = sp.csc_matrix((w, (r, c)), shape=(2 * n, 2 * n))
-    Q = (sp.block_diag([K, K], format="csc") - 2.0 * M).tocsc()
+    # K ⊕ K straight from K's CSC arrays (scipy's block_diag: 0.34 s at 182k vertices)
+    KK = sp.csc_matrix((np.concatenate([K.data, K.data]), np.concatenate([K.indices, K.indices + n]),
+                        np.concatenate([K.indptr, K.indptr[1:] + K.nnz])), shape=(2 * n, 2 * n))
+    Q = (KK - 2.0 * M).tocsc()
     half = 0.5 * np.linalg.norm(V[i] - V[j], axis=1)
     mass = np.bincount(i, half, minlength=n) + np.bincount(j, half, minlength=n)
     return Q, mass, loops
