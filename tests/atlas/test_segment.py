@@ -201,3 +201,41 @@ def test_extension_along_a_seam_of_either_chart_is_left_to_a_whole_flattening():
         assert not whole[0]  # not a disk
     ok, undecided = seg_mod._extension_tests(topo, glued, layouts, members, [(0, 1, st)], np.inf)
     assert ok[0] and not undecided[0]  # no cut: one corner each at every vertex of the stretch
+
+
+def test_a_failing_region_is_split_from_its_own_seeds_at_the_same_cone(monkeypatch):
+    """Segmentation step 2: a region whose quick flattening fails is grown again at the same cone from
+    ``SPLIT_SEEDS`` farthest seeds of its own (not shrunk with a narrower cone), into at least two pieces, each
+    checked in turn; the pieces of one generation are flattened in one solve."""
+    seg_mod = sys.modules["heatparam.atlas.segment"]
+    calls, flattened = [], []
+    real_grow, real_flatten = seg_mod.grow, seg_mod.flatten_charts
+
+    def grow(topo, faces, cone, target, seed=0):
+        out = real_grow(topo, faces, cone, target, seed)
+        calls.append((len(faces), cone, target, len(out)))
+        return out
+
+    def flatten(topo, charts, glued, bound=np.inf):
+        flattened.append(len(charts))
+        return real_flatten(topo, charts, glued, bound)
+
+    real_merge = seg_mod._merge
+
+    def merge(*a, **k):
+        flattened.append("merge")
+        return real_merge(*a, **k)
+
+    monkeypatch.setattr(seg_mod, "grow", grow)
+    monkeypatch.setattr(seg_mod, "flatten_charts", flatten)
+    monkeypatch.setattr(seg_mod, "_merge", merge)
+    V, F = datasets.torus()
+    seg = segment(Topology.build(V, F), 1.05)
+    first, *splits = calls
+    assert seg.stats["regrown"] == len(splits) > 1
+    for n, cone, target, pieces in splits:
+        assert cone == first[1] and target == -(-n // seg_mod.SPLIT_SEEDS) and pieces >= 2
+    growth = flattened[:flattened.index("merge")]  # the regions' checks, one flattening per generation
+    assert sum(growth) == seg.stats["grown"] == first[3] + sum(p for *_, p in splits)
+    assert growth[0] == first[3] and len(growth) < 1 + len(splits)  # splits of one generation flattened together
+    assert seg.checked.all()

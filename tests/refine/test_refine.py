@@ -249,6 +249,44 @@ def test_polish_paused_and_resumed_makes_the_same_iterations(backend):
         assert final[key] == info_ref[key], key
 
 
+def test_polish_paused_without_parking_keeps_its_factorization():
+    """``Polish(park=False)`` (the seams stage's cut trial, usually finished next): while paused it keeps its
+    factorization, and going on gives the very layout and report of the uninterrupted polish."""
+    s = datasets.curved_cap_with_holes(sphere_radius=1.2, h=0.04)
+    disk = tutte.build_disk(s.V, s.F)
+    g, area = energy.surface_gradients(s.V, s.F)
+    uv0 = tutte.tutte(s.V, disk)[: len(s.V)]
+    loops = [disk.outer, *disk.holes]
+    x_ref, info_ref = newton.polish(uv0, s.F, g, area, loops)
+    run = newton.Polish(uv0, s.F, g, area, loops, park=False)
+    pauses = 0
+    while not run.run(pause_excess=0.03):
+        pauses += 1
+        assert run.report()["stop"] == "paused" and run.fac is not None  # kept, not freed
+    assert pauses >= 1 and run.done and run.fac is None  # stopped: freed
+    assert np.array_equal(run.x, x_ref)
+    for key in ("iterations", "converged", "stop", "energy_end", "factorizations"):
+        assert run.report()[key] == info_ref[key], key
+
+
+def test_polish_gives_up_sooner_at_the_barrier_with_fewer_stall_iterations():
+    """``Polish(stall_iters=...)``: the excess cone's isometric layout overlaps itself, so its polish ends pressing
+    against the scaffold's barrier; allowed 2 barrier-limited iterations gaining < tol in a row instead of 5, it
+    stops sooner ("stalled at the barrier", as the levels of a coarse-to-fine polish do) within 1e-6 of the
+    energy, bijective."""
+    V, F = excess_cone()
+    disk = tutte.build_disk(V, F)
+    g, area = energy.surface_gradients(V, F)
+    uv0 = tutte.tutte(V, disk)[: len(V)]
+    full = newton.Polish(uv0, F, g, area, disk.loops)
+    full.run()
+    short = newton.Polish(uv0, F, g, area, disk.loops, stall_iters=2)
+    short.run()
+    assert short.report()["stop"] == "stalled at the barrier" and short.it < full.it, (short.it, full.it)
+    assert short.report()["energy_end"] == pytest.approx(full.report()["energy_end"], rel=1e-6)
+    assert start.bijectivity(short.x, F, g) == (0, 0) and metrics.boundary_crossings(short.x, F) == 0
+
+
 def test_scaffold_refuses_crossing_loops():
     """Loops that cross cannot bound a scaffold: a clear ValueError, not a broken triangulation."""
     s = datasets.cylinder_with_holes()
@@ -534,6 +572,41 @@ def test_fine_level_without_a_scaffold_until_boundaries_meet(cap_from_tutte, mon
     assert switched["scaffold_from_iteration"] == 1
     assert switched["iterations"] == scaffolded["iterations"]
     assert switched["energy_end"] == pytest.approx(scaffolded["energy_end"], rel=1e-9)
+
+
+def test_levels_stall_rules_and_the_fine_scaffold_after_a_stall(cap_from_tutte, monkeypatch):
+    """The levels of a coarse-to-fine polish give up at the barrier after ``COARSE_STALL_ITERS`` (coarse) and
+    ``FINE_STALL_ITERS`` (the fine level polished from one) barrier-limited iterations; after a coarse level that
+    stalled at the barrier the fine polish starts stiff, not bare, and keeps its scaffold while it holds
+    (``FINE_KEEP_AFTER_STALL``); a polish without a coarse level keeps ``newton.STALL_ITERS``."""
+    s, g, area, loops, x0 = cap_from_tutte
+    monkeypatch.setattr(multilevel, "COARSE_MIN", 1500)
+    made = []
+    real = newton.Polish
+
+    def recording(*a, **k):
+        p = real(*a, **k)
+        made.append((len(a[0]), k))
+        return p
+
+    monkeypatch.setattr(multilevel, "Polish", recording)
+    kw = dict(min_vertices=len(s.V), max_iters=200, tol=1e-6, backend="auto")
+    _, ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
+    (nc, coarse), (nf, fine) = made
+    assert nc == ml["coarse_vertices"] < nf == len(s.V)
+    assert coarse["stall_iters"] == multilevel.COARSE_STALL_ITERS and fine["stall_iters"] == multilevel.FINE_STALL_ITERS
+    stalled = dict(ml, coarse_polish=dict(ml["coarse_polish"], converged=False, stop="stalled at the barrier"))
+    y = x0.copy()
+    monkeypatch.setattr(multilevel, "coarse_to_fine", lambda *a, **k: (y, stalled, None))
+    made.clear()
+    multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
+    (_, after_stall), = made
+    assert after_stall["keep_scaffold"] and after_stall["scaffold_weight"] == 1.0 and after_stall["scaffold"] is True
+    assert after_stall["tol"] == pytest.approx(1e-6 * multilevel.MULTILEVEL_FINE_TOL_FACTOR)
+    made.clear()
+    multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **dict(kw, min_vertices=0))  # one level
+    (_, single), = made
+    assert single["stall_iters"] == newton.STALL_ITERS
 
 
 def test_multilevel_coarse_level_not_kept_paused_below_pause_coarse(cap_from_tutte, monkeypatch):
