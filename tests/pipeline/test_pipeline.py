@@ -443,6 +443,42 @@ def test_seams_decided_on_paused_polishes_keep_the_map(case, halftunnel, halftun
         assert paused.report["method"]["refine"]["polish"][key] == full.report["method"]["refine"]["polish"][key]
 
 
+def test_a_dropped_cut_trial_frees_its_factorization_before_the_kept_map_is_finished(monkeypatch):
+    """The cut trial pauses without parking (``Polish(park=False)``: it is usually kept and goes on at once); where
+    the map without seams is kept instead (the noisy cylinder with holes), the cut trial and its factorization are
+    gone by the time the kept map's polish is finished, and the kept map is the one decided on finished polishes."""
+    import weakref
+
+    from heatparam.pipeline import seams
+    from heatparam.refine import newton
+
+    made = []
+    init = newton.Polish.__init__
+
+    def recording(self, *a, **k):
+        init(self, *a, **k)
+        made.append(weakref.ref(self))
+
+    monkeypatch.setattr(newton.Polish, "__init__", recording)
+    held_at_finish = []
+    finished = seams._finished
+
+    def checking(f):
+        if f.resume is not None:
+            held_at_finish.append([p() for p in made if p() is not None and not p().park and p().fac is not None])
+        return finished(f)
+
+    monkeypatch.setattr(seams, "_finished", checking)
+    V, F = _noisy_cylinder_with_holes()
+    paused = parameterize(V, F)
+    sp = paused.report["method"]["seams"]
+    assert not sp["used"] and sp["paused"]["maps"] == ["with"]  # the cut trial paused, and was dropped
+    assert held_at_finish and held_at_finish[-1] == []  # no unparked factorization left when the kept map went on
+    monkeypatch.setattr(seams, "SEAM_PAUSE_EXCESS", 0.0)  # both trials polished to the end
+    full = parameterize(V, F)
+    assert np.array_equal(paused.uv, full.uv)
+
+
 def test_seams_decided_where_the_uncut_coarse_level_paused(halftunnel, monkeypatch):
     """Coarse-to-fine (forced on halftunnel: 400-vertex threshold, ~250-vertex coarse mesh), the map without seams
     pauses at its coarse level too (``seams.seam_pause``; its map there is far above ``pause_coarse``) and the

@@ -122,10 +122,14 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat,
               if f.resume is not None and not kept]
     # the map not kept is left where it is: its polish state (and heat-stage layout) freed before the kept map is
     # finished (halftunnel upsampled to 201k: the peak is in that finishing polish)
+    # (one statement each: a tuple assignment would keep the map not kept alive while the other is finished, and
+    # the cut map may hold its factorization: it was not parked)
     if better:
-        flat, cut = _left(flat), _finished(cut)
+        flat = _left(flat)
+        cut = _finished(cut)
     else:
-        cut, flat = _left(cut), _finished(flat)
+        cut = _left(cut)
+        flat = _finished(flat)
     iso, iso_s = flat.summary["iso_mean"], cut.summary["iso_mean"]
     rep.update(iso_mean_without=iso, iso_mean_with=iso_s, bijective_with=cut.summary["bijective"])
     if paused:
