@@ -27,6 +27,7 @@ from heatparam.atlas.segment import (
     segment,
 )
 from heatparam.errors import HeatparamError
+from heatparam.mesh.topology import unique_inverse
 
 __all__ = ["ATLAS_FIELDS", "AtlasResult", "DEFAULT_MAX_DISTORTION", "TINY_COMPONENT_FACES", "atlas", "atlas_result"]
 
@@ -238,7 +239,9 @@ def _polish_together(topo, groups: list[np.ndarray], seg: Segmentation, opts: di
     vert, uv, info) tuples, the indices of the others — neither layout bijective —, the polish's report)."""
     from heatparam.refine.charts import refine_charts
 
-    fl = flatten_charts(topo, groups, seg.glued)
+    # a chart whose checked layout is its own LSCM gets the same one again (its pins do not depend on the rows'
+    # order): only the others are laid out
+    fl = flatten_charts(topo, groups, seg.glued, want=None if seg.own_lscm is None else ~(seg.checked & seg.own_lscm))
     ok = fl.ok(np.inf)
     for i in np.flatnonzero(seg.checked & fl.disk & (~ok | (seg.iso < fl.iso))):  # never a chart with a hole
         rows = fl.Fl[fl.face_start[i]:fl.face_start[i + 1]].ravel()
@@ -299,12 +302,14 @@ def _halves(topo, faces: np.ndarray, glued: np.ndarray, seed: int) -> list[tuple
     return out
 
 
-def seam_length(V: np.ndarray, F: np.ndarray, Fuv: np.ndarray) -> float:
-    """Length of the interior mesh edges whose two sides have different UV rows (each edge once)."""
+def seam_length(V: np.ndarray, F: np.ndarray, Fuv: np.ndarray, opp: np.ndarray | None = None,
+                cut: np.ndarray | None = None) -> float:
+    """Length of the interior mesh edges whose two sides have different UV rows (each edge once). opp (3m,): F's
+    ``repair.half_edge_opposites`` and cut (3m,): ``_cut_half_edges``, when the caller has them."""
     from heatparam.atlas.repair import half_edge_opposites
 
-    opp = half_edge_opposites(F)
-    cut = _cut_half_edges(F, Fuv, opp)
+    opp = half_edge_opposites(F) if opp is None else opp
+    cut = _cut_half_edges(F, Fuv, opp) if cut is None else cut
     h = np.flatnonzero(cut & (opp > np.arange(len(opp))))
     fa, ja = h // 3, h % 3
     a, b = F[fa, ja], F[fa, (ja + 1) % 3]
@@ -312,11 +317,9 @@ def seam_length(V: np.ndarray, F: np.ndarray, Fuv: np.ndarray) -> float:
     a_all, b_all = F.ravel(), F[:, [1, 2, 0]].ravel()
     n = len(V)
     key = np.minimum(a_all, b_all) * n + np.maximum(a_all, b_all)
-    uk, first, cnt = np.unique(key, return_index=True, return_counts=True)
-    multi = first[(cnt >= 2)]
-    hw = np.flatnonzero(opp > np.arange(len(opp)))  # the welded (manifold, oriented) edges, each once
-    welded_keys = np.minimum(a_all[hw], b_all[hw]) * n + np.maximum(a_all[hw], b_all[hw])
-    multi = multi[~np.isin(key[multi], welded_keys)]
+    _, first, inv = unique_inverse(key)
+    # the edges of 2+ half-edges none of which is welded (manifold, oriented)
+    multi = first[(np.bincount(inv) >= 2) & (np.bincount(inv, weights=opp >= 0) == 0)]
     L = float(np.linalg.norm(V[b] - V[a], axis=1).sum())
     L += float(np.linalg.norm(V[b_all[multi]] - V[a_all[multi]], axis=1).sum())
     return L
@@ -335,6 +338,7 @@ def _cut_half_edges(F: np.ndarray, Fuv: np.ndarray, opp: np.ndarray) -> np.ndarr
 
 def _report(V, F, uv, Fuv, uv_vertex, chart_of, charts, rep, comp_reports, tiny, pinfo, bound, max_distortion,
             max_charts) -> dict:
+    from heatparam.atlas.repair import half_edge_opposites
     from heatparam.metrics import distortion
 
     A3 = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
@@ -345,10 +349,12 @@ def _report(V, F, uv, Fuv, uv_vertex, chart_of, charts, rep, comp_reports, tiny,
                     "iso_mean": float(c["info"].get("iso_mean", float("nan"))), "flips": int(c["info"]["flips"]),
                     "method": c["info"].get("method"), "seam_length": 0.0})
     # per chart seam length: its border edges that are not mesh border (computed on the whole atlas)
-    _per_chart_seams(V, F, Fuv, chart_of, per)
+    opp = half_edge_opposites(F)
+    cut = _cut_half_edges(F, Fuv, opp)
+    _per_chart_seams(V, F, cut, chart_of, per)
     scale = pinfo["scale"]
     d = distortion(V, F, uv, Fuv)
-    L = seam_length(V, F, Fuv)
+    L = seam_length(V, F, Fuv, opp, cut)
     area = float(A3.sum())
     totals = {
         "charts": len(charts),
@@ -378,10 +384,7 @@ def _report(V, F, uv, Fuv, uv_vertex, chart_of, charts, rep, comp_reports, tiny,
     }
 
 
-def _per_chart_seams(V, F, Fuv, chart_of, per) -> None:
-    from heatparam.atlas.repair import half_edge_opposites
-
-    cut = _cut_half_edges(F, Fuv, half_edge_opposites(F))
+def _per_chart_seams(V, F, cut, chart_of, per) -> None:
     h = np.arange(3 * len(F))
     fa, ja = h // 3, h % 3
     L = np.linalg.norm(V[F[fa, (ja + 1) % 3]] - V[F[fa, ja]], axis=1) * cut

@@ -14,8 +14,6 @@ from fractions import Fraction
 
 import numpy as np
 
-from heatparam.mesh.topology import unique_ints
-
 __all__ = ["overlapping_pairs", "count_overlaps", "uv_degenerate_faces"]
 
 _EPS = np.finfo(np.float64).eps
@@ -52,7 +50,8 @@ def uv_degenerate_faces(uv: np.ndarray, Fuv: np.ndarray) -> np.ndarray:
 
 
 def _candidates(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """(p,2) pairs i < j whose closed bounding boxes intersect (uniform grid broad phase)."""
+    """(p,2) pairs i < j whose closed bounding boxes intersect (uniform grid broad phase), each once, in no
+    particular order."""
     m = len(lo)
     if m < 2:
         return np.zeros((0, 2), dtype=np.int64)
@@ -79,15 +78,17 @@ def _candidates(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         st = starts[sizes == s]
         block = tri[st[:, None] + np.arange(s)]  # (b, s)
         iu, ju = np.triu_indices(s, 1)
-        pairs.append(np.stack([block[:, iu].ravel(), block[:, ju].ravel()], axis=1))
+        a, b = block[:, iu].ravel(), block[:, ju].ravel()
+        cell = np.repeat(key[st], len(iu))
+        # each pair once: in the cell of its boxes' common lower-left corner (both boxes cover that cell), where
+        # the boxes intersect at all
+        keep = (np.maximum(c0[a, 0], c0[b, 0]) * ny + np.maximum(c0[a, 1], c0[b, 1]) == cell)
+        a, b = a[keep], b[keep]
+        keep = (lo[a, 0] <= hi[b, 0]) & (lo[b, 0] <= hi[a, 0]) & (lo[a, 1] <= hi[b, 1]) & (lo[b, 1] <= hi[a, 1])
+        pairs.append(np.column_stack([a[keep], b[keep]]))
     if not pairs:
         return np.zeros((0, 2), dtype=np.int64)
-    P = np.concatenate(pairs)
-    key = unique_ints(np.minimum(P[:, 0], P[:, 1]) * m + np.maximum(P[:, 0], P[:, 1]))
-    a, b = key // m, key % m
-    P = np.column_stack([a, b])
-    keep = (lo[a] <= hi[b]).all(axis=1) & (lo[b] <= hi[a]).all(axis=1)
-    return P[keep]
+    return np.concatenate(pairs)
 
 
 def overlapping_pairs(uv: np.ndarray, Fuv: np.ndarray, chunk: int = 1_000_000) -> np.ndarray:
@@ -133,8 +134,8 @@ def overlapping_pairs(uv: np.ndarray, Fuv: np.ndarray, chunk: int = 1_000_000) -
         out.append(live[hit])
     if not out:
         return np.zeros((0, 2), dtype=np.int64)
-    res = np.concatenate(out)
-    return np.sort(res, axis=1) if len(res) else np.zeros((0, 2), dtype=np.int64)
+    res = np.sort(np.concatenate(out), axis=1)
+    return res[np.lexsort((res[:, 1], res[:, 0]))] if len(res) else np.zeros((0, 2), dtype=np.int64)
 
 
 def count_overlaps(uv: np.ndarray, Fuv: np.ndarray) -> int:

@@ -18,6 +18,7 @@ from scipy.sparse.csgraph import connected_components
 
 from heatparam.errors import MeshError
 from heatparam.mesh import validate_mesh
+from heatparam.mesh.topology import unique_inverse
 
 __all__ = ["Component", "Repair", "repair", "half_edge_opposites"]
 
@@ -120,10 +121,10 @@ def repair(V: np.ndarray, F: np.ndarray) -> Repair:
     ncomp, fcomp = connected_components(Gf, directed=False)
     corner_vertex = F.ravel()
     # new vertex ids: one per corner class (ordered by first corner)
-    uniq, first = np.unique(label, return_index=True)
+    uniq, first, inv = unique_inverse(label)
     new_id = np.empty(len(uniq), dtype=np.int64)
     new_id[np.argsort(first, kind="stable")] = np.arange(len(uniq))
-    cls = new_id[np.searchsorted(uniq, label)]
+    cls = new_id[inv]
     cls_vertex = np.empty(len(uniq), dtype=np.int64)
     cls_vertex[cls] = corner_vertex
     per_vertex = np.bincount(cls_vertex, minlength=n)
@@ -131,9 +132,8 @@ def repair(V: np.ndarray, F: np.ndarray) -> Repair:
     # input edges used by >= 2 faces but not welded
     a, b = F.ravel(), F[:, [1, 2, 0]].ravel()
     key = np.minimum(a, b) * n + np.maximum(a, b)
-    uk, cnt = np.unique(key, return_counts=True)
-    welded = np.unique(key[h])
-    cut_edges = int(len(np.setdiff1d(uk[cnt >= 2], welded)))
+    _, _, inv = unique_inverse(key)  # edges of 2+ half-edges none of which is welded
+    cut_edges = int(((np.bincount(inv) >= 2) & (np.bincount(inv, weights=opp >= 0) == 0)).sum())
     referenced = np.zeros(n, dtype=bool)
     referenced[F.ravel()] = True
     comps = []
