@@ -84,10 +84,14 @@ class Topology:
         return self._cones
 
     def lists(self) -> tuple[list, list, list, list, list]:
-        """F, opp, crease, normals, areas as Python lists (for the region growing's loop), made once."""
+        """For the region growing's loop, as Python lists, made once: F, normals, areas, and per face its three
+        neighbours across its edges (m where there is none: a sentinel row) and the same with the creases' m."""
         if not hasattr(self, "_lists"):
-            self._lists = (self.F.tolist(), self.opp.tolist(), self.crease.tolist(), self.normals.tolist(),
-                           self.areas.tolist())
+            m = len(self.F)
+            nb = np.where(self.opp >= 0, self.opp // 3, m)
+            cross = np.where(self.crease, m, nb)
+            self._lists = (self.F.tolist(), self.normals.tolist(), self.areas.tolist(), nb.reshape(m, 3).tolist(),
+                           cross.reshape(m, 3).tolist())
         return self._lists
 
     @classmethod
@@ -408,14 +412,15 @@ def grow(topo: Topology, faces: np.ndarray, cone_deg: float, target_faces: int, 
     The loop runs on Python lists and floats (the same arithmetic, in the same order, as numpy's on 3-vectors:
     2.2x faster than on numpy scalars); each region's unit mean normal is kept from one growth to the next."""
     m = len(topo.F)
-    Fl, opp, crease, nrm, areas = topo.lists()
+    Fl, nrm, areas, nb, cross = topo.lists()
+    push, pop = heapq.heappush, heapq.heappop
     cos_cone = float(np.cos(np.radians(cone_deg)))
     order = np.sort(faces)
-    lab = np.full(m, -2, dtype=np.int64)
+    lab = np.full(m + 1, -2, dtype=np.int64)  # row m: the sentinel neighbour (never a region, never free)
     lab[order] = -1  # -1: unassigned and allowed
     label = lab.tolist()
     order = order.tolist()
-    regions: list[list[int]] = []
+    nreg = 0
     nsum: list[list[float]] = []
     unit: list[list[float]] = []  # nsum[r] / |nsum[r]|
     vmark: list[set] = []
@@ -426,7 +431,7 @@ def grow(topo: Topology, faces: np.ndarray, cone_deg: float, target_faces: int, 
         return [ns[0] / length, ns[1] / length, ns[2] / length]
 
     while True:
-        if not regions:
+        if not nreg:
             k = max(1, int(np.ceil(len(faces) / max(target_faces, 1))))
             seeds = _seeds(topo, faces, k, seed).tolist()
         else:  # leftovers (blocked by the disk rule or the cone): one seed each round, no distance field
@@ -439,35 +444,32 @@ def grow(topo: Topology, faces: np.ndarray, cone_deg: float, target_faces: int, 
         for s in seeds:
             if label[s] != -1:
                 continue
-            r = len(regions)
+            r = nreg
+            nreg += 1
             label[s] = r
-            regions.append([s])
             nsum.append([x * areas[s] for x in nrm[s]])
             unit.append(normalized(nsum[r]))
             vmark.append(set(Fl[s]))
             ns = nrm[s]
-            for j in range(3):
-                o = opp[3 * s + j]
-                if o >= 0 and label[o // 3] == -1 and not crease[3 * s + j]:
-                    no = nrm[o // 3]
-                    heapq.heappush(heap, (1.0 - (no[0] * ns[0] + no[1] * ns[1] + no[2] * ns[2]), o // 3, r))
+            for o in cross[s]:
+                if label[o] == -1:
+                    no = nrm[o]
+                    push(heap, (1.0 - (no[0] * ns[0] + no[1] * ns[1] + no[2] * ns[2]), o, r))
         while heap:
-            cost, g, r = heapq.heappop(heap)
+            cost, g, r = pop(heap)
             if label[g] != -1:
                 continue
             nr = unit[r]
             ng = nrm[g]
             c = 1.0 - (ng[0] * nr[0] + ng[1] * nr[1] + ng[2] * nr[2])
             if c > cost + 1e-12:  # stale priority: requeue with the current one
-                heapq.heappush(heap, (c, g, r))
+                push(heap, (c, g, r))
                 continue
             if 1.0 - c < cos_cone:
                 continue
             # disk rule: joined along two edges, or along one with its third vertex new to the region
-            o0, o1, o2 = opp[3 * g], opp[3 * g + 1], opp[3 * g + 2]
-            on0 = o0 >= 0 and label[o0 // 3] == r
-            on1 = o1 >= 0 and label[o1 // 3] == r
-            on2 = o2 >= 0 and label[o2 // 3] == r
+            f0, f1, f2 = nb[g]
+            on0, on1, on2 = label[f0] == r, label[f1] == r, label[f2] == r
             shared = on0 + on1 + on2
             vs = Fl[g]
             if shared == 1:
@@ -476,7 +478,6 @@ def grow(topo: Topology, faces: np.ndarray, cone_deg: float, target_faces: int, 
             elif shared != 2:
                 continue
             label[g] = r
-            regions[r].append(g)
             a = areas[g]
             ns = nsum[r]
             x, y, z = ns[0] + ng[0] * a, ns[1] + ng[1] * a, ns[2] + ng[2] * a
@@ -484,15 +485,15 @@ def grow(topo: Topology, faces: np.ndarray, cone_deg: float, target_faces: int, 
             length = max(math.sqrt(x * x + y * y + z * z), 1e-300)  # normalized(), inlined: the loop's hot spot
             unit[r] = [x / length, y / length, z / length]
             vmark[r].update(vs)
-            for j, o in enumerate((o0, o1, o2)):
-                if o >= 0 and label[o // 3] == -1 and not crease[3 * g + j]:
-                    no = nrm[o // 3]
-                    heapq.heappush(heap, (1.0 - (no[0] * nr[0] + no[1] * nr[1] + no[2] * nr[2]), o // 3, r))
-    lab = np.asarray(label, dtype=np.int64)
+            for o in cross[g]:
+                if label[o] == -1:
+                    no = nrm[o]
+                    push(heap, (1.0 - (no[0] * nr[0] + no[1] * nr[1] + no[2] * nr[2]), o, r))
+    lab = np.asarray(label[:m], dtype=np.int64)
     _smooth(topo, lab, faces)
     mine = np.flatnonzero(lab >= 0)  # each region's faces ascending (a stable sort of the face order)
     by = mine[np.argsort(lab[mine], kind="stable")]
-    ends = np.cumsum(np.bincount(lab[mine], minlength=len(regions)))
+    ends = np.cumsum(np.bincount(lab[mine], minlength=nreg))
     return [r for r in np.split(by, ends[:-1]) if len(r)]
 
 
