@@ -239,9 +239,7 @@ def _polish_together(topo, groups: list[np.ndarray], seg: Segmentation, opts: di
     vert, uv, info) tuples, the indices of the others — neither layout bijective —, the polish's report)."""
     from heatparam.refine.charts import refine_charts
 
-    # a chart whose checked layout is its own LSCM gets the same one again (its pins do not depend on the rows'
-    # order): only the others are laid out
-    fl = flatten_charts(topo, groups, seg.glued, want=None if seg.own_lscm is None else ~(seg.checked & seg.own_lscm))
+    fl = flatten_charts(topo, groups, seg.glued)
     ok = fl.ok(np.inf)
     for i in np.flatnonzero(seg.checked & fl.disk & (~ok | (seg.iso < fl.iso))):  # never a chart with a hole
         rows = fl.Fl[fl.face_start[i]:fl.face_start[i + 1]].ravel()

@@ -120,8 +120,7 @@ class Segmentation:
     """chart (m,) int64 chart id per face (0..k-1); glued (3m,) bool, half-edges welded inside their chart;
     corner_uv (3m,2) each face corner's place in its chart's checked layout (row ``3 f + j``: corner j of face f);
     checked (k,) bool, the charts whose layout ``corner_uv`` is bijective and within the bound; iso (k,) its
-    area-weighted isometric distortion (inf where not checked); own_lscm (k,) bool, the layout is the chart's own
-    LSCM (its region's check or a whole union's test), not an extension of another chart's."""
+    area-weighted isometric distortion (inf where not checked)."""
 
     chart: np.ndarray
     glued: np.ndarray
@@ -129,7 +128,6 @@ class Segmentation:
     corner_uv: np.ndarray | None = None
     checked: np.ndarray | None = None
     iso: np.ndarray | None = None
-    own_lscm: np.ndarray | None = None
 
 
 def chart_mesh(topo: Topology, faces: np.ndarray, glued: np.ndarray, group: np.ndarray | None = None
@@ -218,26 +216,25 @@ class Flattenings:
         return self.Vl[rows], Fi, self.vert[rows], (self.uv if uv is None else uv)[rows]
 
 
-def flatten_charts(topo: Topology, charts: list[np.ndarray], glued: np.ndarray, bound: float = np.inf,
-                   want: np.ndarray | None = None) -> Flattenings:
+def flatten_charts(topo: Topology, charts: list[np.ndarray], glued: np.ndarray, bound: float = np.inf
+                   ) -> Flattenings:
     """LSCM (Lévy et al. 2002) of every chart (face arrays, disjoint), welded across ``glued`` inside each chart,
     all in one sparse solve (two pinned vertices per chart), each oriented like the mesh and scaled to its 3D area.
-    Boundary crossings are checked only where the chart is a flip-free disk within ``bound``. want (k,) bool: the
-    charts to lay out (default all; the others get their meshes only, iso inf)."""
+    Boundary crossings are checked only where the chart is a flip-free disk within ``bound``."""
     faces = np.concatenate(charts)
     k = len(charts)
     sizes = np.array([len(c) for c in charts], dtype=np.int64)
     fgroup = np.repeat(np.arange(k), sizes)
     Vl, Fl, vert = chart_mesh(topo, faces, glued, fgroup)
-    uv, iso, flips, cross, disk, vgroup = flatten_components(Vl, Fl, fgroup, k, bound, vert, want)
+    uv, iso, flips, cross, disk, vgroup = flatten_components(Vl, Fl, fgroup, k, bound, vert)
     return Flattenings(Vl, Fl, vert, uv, vgroup, np.r_[0, np.cumsum(sizes)], iso, flips, cross, disk)
 
 
 def flatten_components(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, k: int, bound: float = np.inf,
-                       vkey: np.ndarray | None = None, want: np.ndarray | None = None):
+                       vkey: np.ndarray | None = None):
     """:func:`flatten_charts` on a mesh whose components are the k groups ``fgroup`` (m,) of faces: (uv (n,2),
     iso (k,), flips (k,), crossings (k,), disk (k,), vgroup (n,)). vkey (n,): a vertex key independent of the rows'
-    order (the component's vertex), used to choose the pins; want (k,) bool: the groups to lay out (default all)."""
+    order (the component's vertex), used to choose the pins."""
     n = len(Vl)
     vgroup = np.full(n, -1, dtype=np.int64)
     vgroup[Fl.ravel()] = np.repeat(fgroup, 3)
@@ -258,7 +255,7 @@ def flatten_components(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, k: in
     vkey = np.arange(n) if vkey is None else vkey
     p0, _ = _farthest_per_group(Vl, bv, gb, _first_per_group(bv, gb, vkey, k), vkey, k)
     p1, dmax = _farthest_per_group(Vl, bv, gb, p0, vkey, k)
-    solve = disk & (p0 >= 0) & (dmax > 0) & (True if want is None else want)
+    solve = disk & (p0 >= 0) & (dmax > 0)
     if not solve.any():
         return uv, iso, flips, cross, disk, vgroup
     sel = solve[fgroup]
@@ -688,7 +685,7 @@ def segment(topo: Topology, max_distortion: float, max_charts: int | None = None
     stats["merge_seconds"] = round(time.perf_counter() - t, 3)
     stats["merges"], stats["merge_tests"] = nmerge, ntest
     return Segmentation(chart=chart, glued=glued, stats=stats, corner_uv=layouts.uv,
-                        checked=layouts.checked(), iso=layouts.iso(), own_lscm=layouts.own_lscm())
+                        checked=layouts.checked(), iso=layouts.iso())
 
 
 class _Layouts:
@@ -701,7 +698,6 @@ class _Layouts:
         self.isum: dict[int, float] = {}
         self.area: dict[int, float] = {}
         self.ok: dict[int, bool] = {}
-        self.lscm: dict[int, bool] = {}  # the layout is the chart's own LSCM (a flattening), not an extension
 
     def add(self, ids: list[int], charts: list[np.ndarray], fl: Flattenings, which: list[int], ok: list[bool]
             ) -> None:
@@ -717,11 +713,10 @@ class _Layouts:
             corners = (3 * charts[i][:, None] + np.arange(3)).ravel()
             self.uv[corners] = fl.uv[fl.Fl[fl.face_start[i]:fl.face_start[i + 1]]].reshape(-1, 2)
             self.isum[c], self.area[c], self.ok[c] = float(isum[i]) if o else np.inf, float(asum[i]), bool(o)
-            self.lscm[c] = True
 
     def relabel(self, ids: np.ndarray) -> None:
         """The charts renumbered: chart i is the one that was ``ids[i]``."""
-        for d in (self.isum, self.area, self.ok, self.lscm):
+        for d in (self.isum, self.area, self.ok):
             old = dict(d)
             d.clear()
             d.update((i, old[int(c)]) for i, c in enumerate(ids))
@@ -729,10 +724,6 @@ class _Layouts:
     def checked(self) -> np.ndarray:
         """(k,) bool per chart: its layout was checked."""
         return np.array([self.ok[c] for c in range(len(self.ok))], dtype=bool)
-
-    def own_lscm(self) -> np.ndarray:
-        """(k,) bool per chart: its layout is its own LSCM (from a flattening of the chart, not an extension)."""
-        return np.array([self.lscm[c] for c in range(len(self.lscm))], dtype=bool)
 
     def iso(self) -> np.ndarray:
         """(k,) per chart: the area-weighted isometric distortion of its layout (inf where not checked)."""
@@ -938,7 +929,6 @@ def _extension_tests(topo: Topology, glued: np.ndarray, layouts: _Layouts, membe
         layouts.isum[a] = layouts.isum[big[i]] + float(isum[i])
         layouts.area[a] = layouts.area[big[i]] + float(asum[i])
         layouts.ok[a] = True  # the larger chart's corners are in place already (under a's id or b's)
-        layouts.lscm[a] = False
     return cand, undecided
 
 
