@@ -216,25 +216,26 @@ class Flattenings:
         return self.Vl[rows], Fi, self.vert[rows], (self.uv if uv is None else uv)[rows]
 
 
-def flatten_charts(topo: Topology, charts: list[np.ndarray], glued: np.ndarray, bound: float = np.inf
-                   ) -> Flattenings:
+def flatten_charts(topo: Topology, charts: list[np.ndarray], glued: np.ndarray, bound: float = np.inf,
+                   want: np.ndarray | None = None) -> Flattenings:
     """LSCM (Lévy et al. 2002) of every chart (face arrays, disjoint), welded across ``glued`` inside each chart,
     all in one sparse solve (two pinned vertices per chart), each oriented like the mesh and scaled to its 3D area.
-    Boundary crossings are checked only where the chart is a flip-free disk within ``bound``."""
+    Boundary crossings are checked only where the chart is a flip-free disk within ``bound``. want (k,) bool: the
+    charts to lay out (default all; the others get their meshes and disk tests only, iso inf)."""
     faces = np.concatenate(charts)
     k = len(charts)
     sizes = np.array([len(c) for c in charts], dtype=np.int64)
     fgroup = np.repeat(np.arange(k), sizes)
     Vl, Fl, vert = chart_mesh(topo, faces, glued, fgroup)
-    uv, iso, flips, cross, disk, vgroup = flatten_components(Vl, Fl, fgroup, k, bound, vert)
+    uv, iso, flips, cross, disk, vgroup = flatten_components(Vl, Fl, fgroup, k, bound, vert, want)
     return Flattenings(Vl, Fl, vert, uv, vgroup, np.r_[0, np.cumsum(sizes)], iso, flips, cross, disk)
 
 
 def flatten_components(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, k: int, bound: float = np.inf,
-                       vkey: np.ndarray | None = None):
+                       vkey: np.ndarray | None = None, want: np.ndarray | None = None):
     """:func:`flatten_charts` on a mesh whose components are the k groups ``fgroup`` (m,) of faces: (uv (n,2),
     iso (k,), flips (k,), crossings (k,), disk (k,), vgroup (n,)). vkey (n,): a vertex key independent of the rows'
-    order (the component's vertex), used to choose the pins."""
+    order (the component's vertex), used to choose the pins; want (k,) bool: the groups to lay out (default all)."""
     n = len(Vl)
     vgroup = np.full(n, -1, dtype=np.int64)
     vgroup[Fl.ravel()] = np.repeat(fgroup, 3)
@@ -255,7 +256,7 @@ def flatten_components(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, k: in
     vkey = np.arange(n) if vkey is None else vkey
     p0, _ = _farthest_per_group(Vl, bv, gb, _first_per_group(bv, gb, vkey, k), vkey, k)
     p1, dmax = _farthest_per_group(Vl, bv, gb, p0, vkey, k)
-    solve = disk & (p0 >= 0) & (dmax > 0)
+    solve = disk & (p0 >= 0) & (dmax > 0) & (True if want is None else want)
     if not solve.any():
         return uv, iso, flips, cross, disk, vgroup
     sel = solve[fgroup]
