@@ -374,6 +374,13 @@ def _edge_cells(A: np.ndarray, B: np.ndarray, h: float, origin: np.ndarray) -> n
             cell[:, 1 + other] = co
             parts.append(cell)
     rows = np.concatenate(parts)
+    lo = rows.min(axis=0)
+    span = rows.max(axis=0) - lo + 1
+    if float(span[1]) * float(span[2]) * float(span[0]) < 2.0**62:  # one int64 key (cx, cy, edge): one sort
+        key = unique_ints(((rows[:, 1] - lo[1]) * span[2] + rows[:, 2] - lo[2]) * span[0] + rows[:, 0] - lo[0])
+        cell, e = np.divmod(key, span[0])
+        cx, cy = np.divmod(cell, span[2])
+        return np.column_stack([e + lo[0], cx + lo[1], cy + lo[2]])
     order = np.lexsort((rows[:, 0], rows[:, 2], rows[:, 1]))
     rows = rows[order]
     keep = np.ones(len(rows), dtype=bool)
