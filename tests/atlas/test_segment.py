@@ -51,6 +51,22 @@ def test_pins_do_not_depend_on_the_row_order():
     assert np.isclose(a.iso[0], b.iso[0], rtol=1e-9)
 
 
+def test_charts_not_wanted_get_their_meshes_but_no_layout():
+    """``flatten_charts(want=)`` (the joint polish lays out only the charts without a checked layout): the others
+    keep their meshes and disk tests, get no layout (iso inf, crossings not checked), and the wanted charts get the
+    layouts they get in a full flattening."""
+    topo, seg, groups = _torus_charts()
+    want = np.arange(len(groups)) % 2 == 0
+    full = flatten_charts(topo, groups, seg.glued)
+    part = flatten_charts(topo, groups, seg.glued, want=want)
+    np.testing.assert_array_equal(part.Fl, full.Fl)
+    np.testing.assert_array_equal(part.disk, full.disk)
+    assert np.isinf(part.iso[~want]).all() and (part.crossings[~want] == -1).all()
+    np.testing.assert_allclose(part.iso[want], full.iso[want], rtol=1e-9)
+    for i in np.flatnonzero(want):
+        np.testing.assert_allclose(part.chart(i)[3], full.chart(i)[3], atol=1e-9)
+
+
 def test_each_chart_reports_its_own_failures():
     """A non-disk union (two charts glued along everything they share, closing a loop) and a folded chart sit in
     the same batch as good charts: only they fail."""
