@@ -124,3 +124,24 @@ def test_solve_unsymmetric(backend):
     x = solvers.solve_unsymmetric(A, b, backend)
     assert x.shape == b.shape and np.allclose(A @ x, b, atol=1e-9)
     assert np.allclose(solvers.solve_unsymmetric(A, b[:, 0], backend), x[:, 0], atol=1e-9)
+
+
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="pypardiso not installed")
+def test_pardiso_two_level_factorization_for_large_systems_it_orders_itself():
+    """From ``TWO_LEVEL_MIN_UNKNOWNS`` unknowns PARDISO factorizes with its improved two-level algorithm where it
+    orders the matrix itself (not with a permutation given, nor below that size): the solves are as accurate, a
+    refactorization keeps the setting, and the same matrix gives the same bits every time (reproducible maps)."""
+    rng = np.random.default_rng(5)
+    k = int(np.ceil(np.sqrt(solvers.TWO_LEVEL_MIN_UNKNOWNS)))
+    A = (_grid_laplacian(k) + 1e-3 * sp.identity(k * k)).tocsc()
+    b = rng.standard_normal(k * k)
+    f, g = Factor(A, "pardiso"), Factor(A, "pardiso")
+    assert f._f.iparm[23] == 10
+    x = f.solve(b)
+    assert np.linalg.norm(A @ x - b) <= 1e-10 * np.linalg.norm(b)
+    np.testing.assert_array_equal(x, g.solve(b))  # bit for bit
+    A2 = (A + 1e-3 * sp.identity(k * k)).tocsc()  # new values on the same pattern: refactorized in place
+    assert f.refactor(A2) is f and f._f.iparm[23] == 10
+    assert np.linalg.norm(A2 @ f.solve(b) - b) <= 1e-10 * np.linalg.norm(b)
+    assert Factor(A, "pardiso", ordering=f.ordering)._f.iparm[23] == 0
+    assert Factor(_grid_laplacian(40), "pardiso")._f.iparm[23] == 0

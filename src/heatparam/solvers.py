@@ -106,6 +106,8 @@ class Factor:
         # conformal matrices of camelhead and beetle upsampled, a 623k-unknown Laplacian block matrix) in 1/3 less
         # time (1.47-1.60 → 0.98-1.13 s, 2.04 → 1.51-1.55 s on 2 cores; BENCHMARKS §22)
         f.iparm[1] = 3
+        # the improved two-level factorization for large systems that PARDISO orders itself (TWO_LEVEL_MIN_UNKNOWNS)
+        f.iparm[23] = 10 if ordering is None and self.n >= TWO_LEVEL_MIN_UNKNOWNS else 0
         if ordering is None:
             f.perm, f.iparm[4] = np.zeros(self.n, dtype=np.int32), 2
         else:
@@ -220,6 +222,16 @@ def solve_unsymmetric(A: sp.spmatrix, b: np.ndarray, backend: str = "auto") -> n
 REORDER_FILL = 1.25
 
 _DEFAULT_IPARM: np.ndarray | None = None
+
+
+#: PARDISO's improved two-level factorization (iparm 24 = 10, 1-based; 0, the classic one, is MKL's default) for
+#: systems of at least this many unknowns that PARDISO orders itself (iparm 5 = 2). Measured on the 2-core Xeon of
+#: BENCHMARKS §23f, camelhead↑180k's Hessian (363k unknowns): factorization 0.48-0.51 → 0.38 s, refactorization
+#: 0.40-0.42 → 0.31 s, a solve 0.12-0.15 → 0.04 s; its conformal matrix: 0.35 → 0.20 s, solves 0.13 → 0.03 s; the
+#: same maps to 11-13 digits, bit-identical run to run. Not below this size: the messy dragon scan's atlas (charts
+#: of tens of faces) got a chart with iso 59 instead of 3.3 and 43 pipeline fallbacks instead of 6. Not with a
+#: permutation given (iparm 5 = 1): no faster there, and not reproducible run to run.
+TWO_LEVEL_MIN_UNKNOWNS = 100_000
 
 
 def _pardiso_defaults(pypardiso) -> np.ndarray:
