@@ -145,3 +145,21 @@ def test_pardiso_two_level_factorization_for_large_systems_it_orders_itself():
     assert np.linalg.norm(A2 @ f.solve(b) - b) <= 1e-10 * np.linalg.norm(b)
     assert Factor(A, "pardiso", ordering=f.ordering)._f.iparm[23] == 0
     assert Factor(_grid_laplacian(40), "pardiso")._f.iparm[23] == 0
+
+
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="pypardiso not installed")
+def test_a_bad_two_level_solve_falls_back_to_the_classic_factorization(monkeypatch):
+    """Every solve of a two-level factorization is checked (``TWO_LEVEL_RESIDUAL``); one that misses is done again
+    with the classic factorization, on the same ordering, which stays for the later solves."""
+    rng = np.random.default_rng(6)
+    k = int(np.ceil(np.sqrt(solvers.TWO_LEVEL_MIN_UNKNOWNS)))
+    A = (_grid_laplacian(k) + 1e-3 * sp.identity(k * k)).tocsc()
+    B = rng.standard_normal((k * k, 2))
+    f = Factor(A, "pardiso")
+    perm = f.ordering[0]
+    real = f._f.solve
+    monkeypatch.setattr(f._f, "solve", lambda T, b: real(T, b) + 1.0)  # a wrong answer from the two-level factor
+    X = f.solve(B)
+    assert f._f.iparm[23] == 0 and f.ordering[0] is perm
+    assert np.linalg.norm(A @ X - B) <= 1e-10 * np.linalg.norm(B)
+    assert np.linalg.norm(A @ f.solve(B[:, 0]) - B[:, 0]) <= 1e-10 * np.linalg.norm(B[:, 0])

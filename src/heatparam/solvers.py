@@ -186,11 +186,29 @@ class Factor:
             if self._f is None:
                 raise RuntimeError("this PARDISO factorization was freed (Factor.free, or replaced by refactor)")
             x = self._f.solve(self._T, b).reshape(b.shape)  # same matrix object: pypardiso reuses the factor
+            if self._f.iparm[23] == 10 and not _solved(self._T, x, b, self._norm()):
+                # the two-level factorization solved badly (measured with a permutation given: residuals of 13 and
+                # 2e9, BENCHMARKS §23f): the classic one, with the same ordering, from now on
+                prepare_mkl()
+                import pypardiso
+
+                self._f.free_memory(everything=True)
+                self._f = self._pardiso(pypardiso, self.ordering)
+                x = self._f.solve(self._T, b).reshape(b.shape)
         if out is None:
             return x
         if x is not out:
             out[...] = x
         return out
+
+    def _norm(self) -> float:
+        """‖A‖∞ of the PARDISO matrix A (from its upper triangle), computed once per matrix."""
+        if getattr(self, "_norm_of", None) is not self._T:
+            aT = abs(self._T)
+            self._norm_value = float(np.max(np.asarray(aT.sum(axis=1)).ravel() + np.asarray(aT.sum(axis=0)).ravel()
+                                            - np.abs(self._T.diagonal())))
+            self._norm_of = self._T
+        return self._norm_value
 
     def __del__(self) -> None:
         # pypardiso keeps MKL's factor until told otherwise: without this every dropped Factor leaks it
@@ -232,6 +250,21 @@ _DEFAULT_IPARM: np.ndarray | None = None
 #: of tens of faces) got a chart with iso 59 instead of 3.3 and 43 pipeline fallbacks instead of 6. Not with a
 #: permutation given (iparm 5 = 1): no faster there, and not reproducible run to run.
 TWO_LEVEL_MIN_UNKNOWNS = 100_000
+
+
+#: A two-level factorization's solve is checked: its normwise backward error ‖A x − b‖∞ / (‖A‖∞ ‖x‖∞ + ‖b‖∞)
+#: (per column) must stay below this. A stable Cholesky solve's is ~1e-16 whatever the conditioning (the spectral
+#: conformal layout solves with a nearly singular matrix on purpose: ‖A x − b‖ / ‖b‖ 1e-7 on beetle↑'s, BENCHMARKS
+#: §23f); the bad solves measured were off by orders of magnitude more
+TWO_LEVEL_BACKWARD_ERROR = 1e-10
+
+
+def _solved(T: sp.csr_matrix, x: np.ndarray, b: np.ndarray, norm: float) -> bool:
+    """Whether x solves A x = b to ``TWO_LEVEL_BACKWARD_ERROR`` (per column), A given by its upper triangle T, norm
+    its ‖A‖∞."""
+    r = T @ x + T.T @ x - T.diagonal().reshape(-1, *([1] * (x.ndim - 1))) * x - b
+    scale = norm * np.max(np.abs(x), axis=0) + np.max(np.abs(b), axis=0)
+    return bool(np.all(np.max(np.abs(r), axis=0) <= TWO_LEVEL_BACKWARD_ERROR * np.maximum(scale, 1e-300)))
 
 
 def _pardiso_defaults(pypardiso) -> np.ndarray:
