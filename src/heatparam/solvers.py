@@ -9,6 +9,8 @@ Backends (``backend=``):
   (:meth:`Factor.refactor`), and, with MKL's iterative refinement switched off, solves as fast as CHOLMOD's.
   :func:`large_system_backend` picks it per use by measurement (BENCHMARKS.md §2, §4): the polish's Hessians at
   every size, the heat-method systems from 100k vertices, the conformal layouts from 200k unknowns.
+  Large systems it orders itself get its improved two-level factorization, every solve checked
+  (:data:`TWO_LEVEL_MIN_UNKNOWNS`, BENCHMARKS.md §23f).
 
 ``auto`` takes the first available of cholespy, scipy (then PARDISO per :func:`large_system_backend`).
 """
