@@ -250,7 +250,8 @@ _DEFAULT_IPARM: np.ndarray | None = None
 #: 0.40-0.42 → 0.31 s, a solve 0.12-0.15 → 0.04 s; its conformal matrix: 0.35 → 0.20 s, solves 0.13 → 0.03 s; the
 #: same maps to 11-13 digits, bit-identical run to run. Not below this size: the messy dragon scan's atlas (charts
 #: of tens of faces) got a chart with iso 59 instead of 3.3 and 43 pipeline fallbacks instead of 6. Not with a
-#: permutation given (iparm 5 = 1): no faster there, and not reproducible run to run.
+#: permutation given (iparm 5 = 1): no faster there, not reproducible run to run, and wrong (residuals 13 and 2e9,
+#: ``bench/bench_pardiso.py``). Every solve is checked (:data:`TWO_LEVEL_BACKWARD_ERROR`).
 TWO_LEVEL_MIN_UNKNOWNS = 100_000
 
 
