@@ -24,14 +24,14 @@ from common import machine, upsampled_camelhead
 
 
 def matrices(target: int) -> dict[str, sp.csr_matrix]:
-    from heatparam.layout.conformal import _conformal_energy, spectral_conformal
+    from heatparam.layout.conformal import SCP_SHIFT, _conformal_energy, spectral_conformal
     from heatparam.refine.energy import jacobians, surface_gradients
     from heatparam.refine.newton import HessianPattern
 
     V, F = upsampled_camelhead(target)
     Q, mass, _ = _conformal_energy(V, F)
     B = np.concatenate([mass, mass])
-    eps = 1e-8 * Q.diagonal().mean() / mass[mass > 0].mean()
+    eps = SCP_SHIFT * np.abs(Q.diagonal()).mean() / mass[mass > 0].mean()  # spectral_conformal's shift
     uv, _ = spectral_conformal(V, F)
     g, area = surface_gradients(V, F)
     pat = HessianPattern(F, len(V), upper=True)
