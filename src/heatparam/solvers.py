@@ -9,7 +9,7 @@ Backends (``backend=``):
   (:meth:`Factor.refactor`), and, with MKL's iterative refinement switched off, solves as fast as CHOLMOD's.
   :func:`large_system_backend` picks it per use by measurement (BENCHMARKS.md §2, §4): the polish's Hessians at
   every size, the heat-method systems from 100k vertices, the conformal layouts from 200k unknowns.
-  Large systems it orders itself get its improved two-level factorization, every solve checked
+  Large systems it orders itself get its improved two-level factorization, each factor's first solve checked
   (:data:`TWO_LEVEL_MIN_UNKNOWNS`, BENCHMARKS.md §23f).
 
 ``auto`` takes the first available of cholespy, scipy (then PARDISO per :func:`large_system_backend`).
@@ -188,15 +188,19 @@ class Factor:
             if self._f is None:
                 raise RuntimeError("this PARDISO factorization was freed (Factor.free, or replaced by refactor)")
             x = self._f.solve(self._T, b).reshape(b.shape)  # same matrix object: pypardiso reuses the factor
-            if self._f.iparm[23] == 10 and not _solved(self._T, x, b, self._norm()):
-                # the two-level factorization solved badly (measured with a permutation given: residuals of 13 and
-                # 2e9, BENCHMARKS §23f): the classic one, with the same ordering, from now on
-                prepare_mkl()
-                import pypardiso
+            # a two-level factor's first solve is checked (a bad factor solves every right-hand side badly)
+            if self._f.iparm[23] == 10 and getattr(self, "_checked", None) is not self._T:
+                if _solved(self._T, x, b, self._norm()):
+                    self._checked = self._T  # this factor of this matrix solved well
+                else:
+                    # the two-level factorization solved badly (measured with a permutation given: residuals of 13
+                    # and 2e9, BENCHMARKS §23f): the classic one, with the same ordering, from now on
+                    prepare_mkl()
+                    import pypardiso
 
-                self._f.free_memory(everything=True)
-                self._f = self._pardiso(pypardiso, self.ordering)
-                x = self._f.solve(self._T, b).reshape(b.shape)
+                    self._f.free_memory(everything=True)
+                    self._f = self._pardiso(pypardiso, self.ordering)
+                    x = self._f.solve(self._T, b).reshape(b.shape)
         if out is None:
             return x
         if x is not out:
@@ -251,11 +255,11 @@ _DEFAULT_IPARM: np.ndarray | None = None
 #: same maps to 11-13 digits, bit-identical run to run. Not below this size: the messy dragon scan's atlas (charts
 #: of tens of faces) got a chart with iso 59 instead of 3.3 and 43 pipeline fallbacks instead of 6. Not with a
 #: permutation given (iparm 5 = 1): no faster there, not reproducible run to run, and wrong (residuals 13 and 2e9,
-#: ``bench/bench_pardiso.py``). Every solve is checked (:data:`TWO_LEVEL_BACKWARD_ERROR`).
+#: ``bench/bench_pardiso.py``). The first solve of every such factor is checked (:data:`TWO_LEVEL_BACKWARD_ERROR`).
 TWO_LEVEL_MIN_UNKNOWNS = 100_000
 
 
-#: A two-level factorization's solve is checked: its normwise backward error ‖A x − b‖∞ / (‖A‖∞ ‖x‖∞ + ‖b‖∞)
+#: A two-level factor's first solve is checked: its normwise backward error ‖A x − b‖∞ / (‖A‖∞ ‖x‖∞ + ‖b‖∞)
 #: (per column) must stay below this. A stable Cholesky solve's is ~1e-16 whatever the conditioning (the spectral
 #: conformal layout solves with a nearly singular matrix on purpose: ‖A x − b‖ / ‖b‖ 1e-7 on beetle↑'s, BENCHMARKS
 #: §23f); the bad solves measured were off by orders of magnitude more

@@ -324,33 +324,73 @@ def test_refine_report_says_what_was_done():
     assert r["bijective"] and r["flips"] == 0 and r["boundary_crossings"] == 0
 
 
+def _coo(F, n, blocks):
+    """The full (2n,2n) matrix of per-face 6×6 blocks by a plain COO assembly (unknown (a, corner i) = a*n + F[:, i],
+    as in ``energy.sd_newton_blocks``)."""
+    import scipy.sparse as sp
+
+    ids = np.concatenate([F, F + n], axis=1)
+    return sp.coo_matrix((blocks.ravel(), (np.repeat(ids, 6, axis=1).ravel(), np.tile(ids, (1, 6)).ravel())),
+                         shape=(2 * n, 2 * n)).tocsc()
+
+
+def _entries(blocks):
+    """The 21 distinct entries (21, m) of symmetric blocks (m,6,6), in ``energy.BLOCK_ENTRIES``' order."""
+    p, q = energy.BLOCK_ENTRIES.T
+    return blocks[:, p, q].T
+
+
 @pytest.mark.parametrize("make", [datasets.cylinder_with_holes, datasets.cone_s_strip])
 def test_hessian_pattern_assembles_like_coo(make):
-    """The block-structured pattern sums per-face 6×6 blocks exactly as a plain COO assembly would."""
+    """The block-structured pattern sums per-face symmetric 6×6 blocks, given by their 21 distinct entries, as a plain
+    COO assembly of the whole blocks would."""
     import scipy.sparse as sp
 
     s = make()
     F, n = s.F, len(s.V)
-    vals = np.random.default_rng(4).normal(size=(len(F), 6, 6))
-    ids = np.concatenate([F, F + n], axis=1)  # unknown (a, corner i) = a*n + F[:, i], as in sd_newton_blocks
-    ref = sp.coo_matrix((vals.ravel(), (np.repeat(ids, 6, axis=1).ravel(), np.tile(ids, (1, 6)).ravel())),
-                        shape=(2 * n, 2 * n)).tocsc()
-    H = newton.HessianPattern(F, n).matrix(vals)
+    X = np.random.default_rng(4).normal(size=(len(F), 6, 6))
+    vals = X + X.transpose(0, 2, 1)
+    ref = _coo(F, n, vals)
+    H = newton.HessianPattern(F, n).matrix(_entries(vals))
     assert H.shape == ref.shape and H.nnz == ref.nnz and H.has_sorted_indices
     assert abs(H - ref).max() <= 1e-12
-    # upper=True (what PARDISO reads): exactly the upper entries of the full matrix, bit for bit, as sorted CSR
-    U = newton.HessianPattern(F, n, upper=True).matrix(vals)
+    # upper=True (what PARDISO reads): exactly the upper entries of the full matrix, as sorted CSR
+    U = newton.HessianPattern(F, n, upper=True).matrix(_entries(vals))
     T = sp.triu(H, format="csr")
     T.sort_indices()
     assert U.format == "csr" and U.has_sorted_indices and U.shape == H.shape
     assert np.array_equal(U.indptr, T.indptr) and np.array_equal(U.indices, T.indices)
-    assert np.array_equal(U.data, T.data)
+    assert np.abs(U.data - T.data).max() <= 1e-12
+
+
+def test_newton_entries_are_the_blocks():
+    """``energy.sd_newton_entries`` (closed form, component by component, in passes) gives the gradient and the
+    distinct entries of ``sd_newton_blocks``' projected blocks to round-off, the passes not changing a bit; also at
+    isotropic Jacobians (a rotation times a scale: the SVD's angles are undetermined there)."""
+    rng = np.random.default_rng(5)
+    J = np.eye(2)[None] + 0.5 * rng.standard_normal((500, 2, 2))
+    J = J[np.linalg.det(J) > 0.05]
+    t = rng.uniform(-np.pi, np.pi, 20)
+    iso = np.stack([np.stack([np.cos(t), -np.sin(t)], 1), np.stack([np.sin(t), np.cos(t)], 1)], 1)
+    J = np.concatenate([J, iso * rng.uniform(0.5, 2.0, (20, 1, 1)), np.eye(2)[None]])
+    P = rng.standard_normal((len(J), 3, 2))
+    P[np.linalg.det(np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], 2)) < 0] *= [1, -1]
+    g, w = energy.hat_gradients(P), rng.uniform(0.1, 1.0, len(J))
+    grad, blocks = energy.sd_newton_blocks(J, g, w)
+    grad2, entries = energy.sd_newton_entries(J, g, w)
+    assert np.abs(grad2 - grad).max() <= 1e-12 * np.abs(grad).max()
+    assert np.abs(entries - _entries(blocks)).max() <= 1e-12 * np.abs(blocks).max()
+    for chunk in (1, 7, 100):
+        grad3, entries3 = energy.sd_newton_entries(J, g, w, chunk)
+        assert np.array_equal(grad3, grad2) and np.array_equal(entries3, entries)
 
 
 @pytest.mark.parametrize("upper", [False, True])
-def test_hessian_assembled_in_chunks_is_the_same_matrix(upper):
-    """``HessianPattern.assemble`` (sd_newton_blocks on chunks of faces, summed in place) gives the gradient and the
-    matrix of one ``sd_newton_blocks`` + ``matrix`` call bit for bit, whatever the chunk."""
+def test_hessian_assembled_is_the_newton_blocks_matrix(upper):
+    """``HessianPattern.assemble`` gives the gradient and the matrix of ``sd_newton_blocks``' blocks (COO) to
+    round-off, the same bits whatever the pass length."""
+    import scipy.sparse as sp
+
     s = datasets.cylinder_with_holes()
     F, n = s.F, len(s.V)
     g, area = energy.surface_gradients(s.V, F)
@@ -358,12 +398,17 @@ def test_hessian_assembled_in_chunks_is_the_same_matrix(upper):
     J, w = energy.jacobians(uv, F, g), area / area.sum()
     pat = newton.HessianPattern(F, n, upper=upper)
     grad, blocks = energy.sd_newton_blocks(J, g, w)
-    H = pat.matrix(blocks)
-    for chunk in (7, 1000, None):
-        grad2, H2 = pat.assemble(J, g, w, chunk)
-        assert np.array_equal(grad, grad2) and H2.format == H.format
-        assert np.array_equal(H.indptr, H2.indptr) and np.array_equal(H.indices, H2.indices)
-        assert np.array_equal(H.data, H2.data)
+    ref = _coo(F, n, blocks)
+    if upper:
+        ref = sp.triu(ref, format="csr")
+    grad2, H = pat.assemble(J, g, w)
+    assert np.abs(grad2 - grad).max() <= 1e-12 * np.abs(grad).max()
+    assert abs(H - ref).max() <= 1e-12 * abs(ref).max()
+    for chunk in (7, 1000):
+        grad3, H3 = pat.assemble(J, g, w, chunk)
+        assert np.array_equal(grad3, grad2) and H3.format == H.format
+        assert np.array_equal(H.indptr, H3.indptr) and np.array_equal(H.indices, H3.indices)
+        assert np.array_equal(H.data, H3.data)
 
 
 def test_polish_of_an_isometry_converges_at_once():
@@ -522,9 +567,11 @@ def test_multilevel_paused_at_its_coarse_level_finishes_as_if_never_paused(cap_f
 def test_fine_level_starts_with_the_scaffold_its_converged_coarse_level_ended_with(cap_from_tutte, monkeypatch):
     """After a converged coarse level the fine polish starts with the scaffold's weight there (the lightest: a
     converged polish ends at it), not the stiffest, and so does not spend a Newton iteration only to lighten it:
-    fewer fine iterations than a stiff start, the same minimum."""
+    fewer fine iterations than a stiff start, the same minimum (where a small step is confirmed at the lightest
+    weight: ``FINE_CONFIRM_LIGHT``)."""
     s, g, area, loops, x0 = cap_from_tutte
     monkeypatch.setattr(multilevel, "COARSE_MIN", 1500)  # 6863 vertices, 466 on the boundary
+    monkeypatch.setattr(multilevel, "FINE_CONFIRM_LIGHT", True)
     kw = dict(min_vertices=len(s.V), max_iters=200, tol=1e-6, backend="auto")
     run, ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
     assert ml["coarse_polish"]["converged"]
@@ -534,6 +581,28 @@ def test_fine_level_starts_with_the_scaffold_its_converged_coarse_level_ended_wi
     assert run.report()["converged"] and stiff.report()["converged"]
     assert run.it < stiff.it, (run.it, stiff.it)
     assert run.report()["energy_end"] == pytest.approx(stiff.report()["energy_end"], rel=1e-4)
+
+
+def test_fine_level_stops_without_confirming_at_the_lightest_scaffold(cap_from_tutte, monkeypatch):
+    """A fine level polished from a coarse one (its tolerance loosened) stops at its first uncut step that gains
+    less than that tolerance, whatever the scaffold's weight (``FINE_CONFIRM_LIGHT`` False): started stiff, it saves
+    the iteration that only confirmed the stop at the lightest weight, and ends at the same minimum, bijective."""
+    s, g, area, loops, x0 = cap_from_tutte
+    monkeypatch.setattr(multilevel, "COARSE_MIN", 1500)
+    monkeypatch.setattr(multilevel, "FINE_SCAFFOLD", False)  # a stiff fine start, as after a stall at the barrier
+    kw = dict(min_vertices=len(s.V), max_iters=200, tol=1e-6, backend="auto")
+    runs = {}
+    for confirm in (True, False):
+        monkeypatch.setattr(multilevel, "FINE_CONFIRM_LIGHT", confirm)
+        runs[confirm], ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
+        assert ml["used"] and ml["fine_tol"] > kw["tol"]
+    light, stiff = runs[True].report(), runs[False].report()
+    assert stiff["converged"] and light["converged"]
+    assert stiff["iterations"] < light["iterations"], (stiff["iterations"], light["iterations"])
+    assert stiff["scaffold_weight"] > light["scaffold_weight"]  # stopped before the weight was lightened
+    assert stiff["energy_end"] == pytest.approx(light["energy_end"], rel=1e-4)
+    x = runs[False].x
+    assert metrics.boundary_crossings(x, s.F) == 0 and (energy.det(energy.jacobians(x, s.F, g)) > 0).all()
 
 
 def test_fine_level_without_a_scaffold_until_boundaries_meet(cap_from_tutte, monkeypatch):

@@ -122,12 +122,13 @@ def spectral_conformal(V: np.ndarray, F: np.ndarray, backend: str = "auto", meth
         raise HeatparamError("the conformal layout failed (non-finite cotangent weights): is the mesh degenerate?")
     used = np.zeros(n, dtype=bool)
     used[F.ravel()] = True
-    idx = np.flatnonzero(np.concatenate([used, used]))
-    Q = Q[idx][:, idx].tocsc()
-    b = np.concatenate([mass, mass])[idx]
+    b = np.concatenate([mass, mass])
+    if not used.all():  # drop the unused vertices' rows and columns (0.3 s at 623k unknowns when there are none)
+        idx = np.flatnonzero(np.concatenate([used, used]))
+        Q, b = Q[idx][:, idx].tocsc(), b[idx]
     eps = SCP_SHIFT * float(np.abs(Q.diagonal()).mean()) / float(b[b > 0].mean())
     try:
-        fac = Factor((Q + sp.diags(eps * b)).tocsc(), large_system_backend(len(idx), backend))
+        fac = Factor((Q + sp.diags(eps * b)).tocsc(), large_system_backend(len(b), backend))
     except (ValueError, RuntimeError) as exc:  # not positive definite: degenerate faces, several components
         raise HeatparamError(f"the conformal layout failed ({exc}): is the mesh degenerate?") from exc
     nu = int(used.sum())

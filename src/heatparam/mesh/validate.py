@@ -14,7 +14,14 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from heatparam.errors import MeshError, TopologyError
-from heatparam.mesh.topology import DEGENERATE_AREA_REL, face_areas, loop_length, loops_outer_first, unique_ints
+from heatparam.mesh.topology import (
+    DEGENERATE_AREA_REL,
+    face_areas,
+    loop_length,
+    loops_outer_first,
+    sort_with_order,
+    unique_ints,
+)
 
 #: Outer border length² / area below which a surface counts as nearly closed. A flat disk has 4π ≈ 12.6, a
 #: hemisphere 2π ≈ 6.3, the strongly curved camelhead.off 1.0, stanford-bunny.obj (a sphere with 5 small holes) 0.23.
@@ -158,8 +165,7 @@ def edge_structure(F: np.ndarray) -> Edges:
     he = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
     lo, hi = he.min(axis=1), he.max(axis=1)
     ukey = lo * n + hi
-    order = np.argsort(ukey, kind="stable")
-    sk = ukey[order]
+    sk, order = sort_with_order(ukey)
     starts = np.flatnonzero(np.r_[True, sk[1:] != sk[:-1]])
     count = np.diff(np.r_[starts, len(sk)])
     return Edges(he, order, starts, count, n, m)

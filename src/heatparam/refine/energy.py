@@ -136,6 +136,80 @@ def sd_newton_blocks(J: np.ndarray, g: np.ndarray, w: np.ndarray) -> tuple[np.nd
     blocks = np.matmul(b.transpose(0, 2, 1) * lw[:, None, :], b)
     return w[:, None, None] * grad, blocks
 
+#: The 21 entries (p, q), p ≤ q, of a face's symmetric 6×6 block that :func:`sd_newton_entries` computes, in its
+#: order: the (u, u) block's upper triangle (i ≤ j), the (v, v) block's, then the (u, v) block's 9 (u_i, v_j); the
+#: unknowns of a face are ordered (u₀,u₁,u₂,v₀,v₁,v₂) as in :func:`sd_newton_blocks`
+_I3, _J3 = np.triu_indices(3)
+BLOCK_ENTRIES = np.array([(i, j) for i, j in zip(_I3, _J3, strict=True)]
+                         + [(3 + i, 3 + j) for i, j in zip(_I3, _J3, strict=True)]
+                         + [(i, 3 + j) for i in range(3) for j in range(3)], dtype=np.int64)
+
+#: Faces per pass of :func:`sd_newton_entries`: its ~60 temporaries of this length stay in the CPU's cache (363k faces
+#: at once: 0.21 s; in passes of 4k-16k faces: 0.10 s, 2026-12-04; :func:`sd_newton_blocks`: 0.34 s)
+ENTRY_CHUNK = 8192
+
+
+def sd_newton_entries(J: np.ndarray, g: np.ndarray, w: np.ndarray, chunk: int = ENTRY_CHUNK
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`sd_newton_blocks` as the 21 distinct entries of each symmetric block (``BLOCK_ENTRIES``), in closed
+    form, ``chunk`` faces at a time: dE/dJ (m,2,2) and the entries (21, m).
+
+    With J = U diag(σ) Vᵀ, U = rot(θ_U) (columns u₁, u₂), V = rot(θ_V), the pulled-back corner vectors P = g v₁ and
+    R = g v₂ (3,) and the clamped eigenvalues of :func:`sd_eigensystem` (λ₁, λ₂, twist λ₃⁺, flip λ₄) with
+    μ = λ₃⁺/2, ν = λ₄/2, σ = μ + ν, δ = ν − μ, the block Σ_k λ_k b_k b_kᵀ is, for unknown blocks a, b ∈ {u, v}:
+
+        H_ab[i, j] = w (α_ab P_i P_j + β_ab R_i R_j + γ_ab P_i R_j + γ_ba R_i P_j),
+        α_ab = λ₁ u₁ₐ u₁ᵦ + σ u₂ₐ u₂ᵦ,  β_ab = λ₂ u₂ₐ u₂ᵦ + σ u₁ₐ u₁ᵦ,  γ_ab = δ u₂ₐ u₁ᵦ
+
+    (the twist and flip terms expanded), one component array at a time instead of (m,4,6) stacks and a batched
+    product: 3.3× faster at 363k faces, equal to round-off (tests)."""
+    m = len(J)
+    grad, out = np.empty((m, 2, 2)), np.empty((21, m))
+    for a0 in range(0, m, max(1, chunk)):
+        b0 = min(m, a0 + max(1, chunk))
+        _entries(J[a0:b0], g[a0:b0], w[a0:b0], grad[a0:b0], out[:, a0:b0])
+    return grad, out
+
+
+def _entries(J: np.ndarray, g: np.ndarray, w: np.ndarray, grad: np.ndarray, out: np.ndarray) -> None:
+    """:func:`sd_newton_entries` on one pass of faces, written into ``grad`` (k,2,2) and ``out`` (21,k)."""
+    a, b, c, d = J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1]
+    # signed SVD as svd2: σ₁,₂ = q ± r, θ_U = (a₂ + a₁)/2, θ_V = (a₁ − a₂)/2
+    e, f, gg, h = 0.5 * (a + d), 0.5 * (a - d), 0.5 * (c + b), 0.5 * (c - b)
+    q, r = np.sqrt(e * e + h * h), np.sqrt(f * f + gg * gg)
+    a1, a2 = np.arctan2(gg, f), np.arctan2(h, e)
+    tu, tv = 0.5 * (a2 + a1), 0.5 * (a1 - a2)
+    cu, su, cv, sv = np.cos(tu), np.sin(tu), np.cos(tv), np.sin(tv)
+    s1, s2 = q + r, q - r
+    s11, s22, s12 = s1 * s1, s2 * s2, s1 * s2
+    p3 = s12 * s12 * s12
+    l1 = w * (2 + 6 / (s11 * s11))
+    l2 = w * (2 + 6 / (s22 * s22))
+    mu = w * np.maximum(1 - (s11 - s12 + s22) / p3, 0.0)  # half the twist eigenvalue, clamped (the PSD projection)
+    nu = w * np.maximum(1 + (s11 + s12 + s22) / p3, 0.0)  # half the flip eigenvalue (< 0 only where det J < 0)
+    sig, dl = mu + nu, nu - mu
+    # dΨ/dJ = U diag(2σ − 2σ⁻³) Vᵀ, weighted
+    d1, d2 = w * (2 * s1 - 2 / (s1 * s11)), w * (2 * s2 - 2 / (s2 * s22))
+    cd1, sd1, cd2, sd2 = cu * d1, su * d1, cu * d2, su * d2
+    grad[:, 0, 0] = cd1 * cv + sd2 * sv
+    grad[:, 0, 1] = cd1 * sv - sd2 * cv
+    grad[:, 1, 0] = sd1 * cv - cd2 * sv
+    grad[:, 1, 1] = sd1 * sv + cd2 * cv
+    P = [g[:, i, 0] * cv + g[:, i, 1] * sv for i in range(3)]  # g v₁
+    R = [g[:, i, 1] * cv - g[:, i, 0] * sv for i in range(3)]  # g v₂
+    cc, ss, cs = cu * cu, su * su, cu * su  # u₁ = (c, s), u₂ = (−s, c)
+    A0, B0, G0 = l1 * cc + sig * ss, l2 * ss + sig * cc, -(dl * cs)
+    A1, B1, G1 = l1 * ss + sig * cc, l2 * cc + sig * ss, dl * cs
+    A01, B01, G01, G10 = (l1 - sig) * cs, (sig - l2) * cs, -(dl * ss), dl * cc
+    for k, (i, j) in enumerate(zip(_I3, _J3, strict=True)):
+        pp, rr, pr = P[i] * P[j], R[i] * R[j], P[i] * R[j] + R[i] * P[j]
+        out[k] = A0 * pp + B0 * rr + G0 * pr
+        out[k + 6] = A1 * pp + B1 * rr + G1 * pr
+    for k in range(9):
+        i, j = divmod(k, 3)
+        out[12 + k] = A01 * (P[i] * P[j]) + B01 * (R[i] * R[j]) + G01 * (P[i] * R[j]) + G10 * (R[i] * P[j])
+
+
 def surface_gradients(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Hat gradients (m,3,2) of each 3D triangle in its own frame, and the areas (m,) (mollified lengths)."""
     raw = edge_lengths(V, F)

@@ -84,6 +84,15 @@ FINE_KEEP_AFTER_STALL = True
 COARSE_STALL_ITERS = 3
 FINE_STALL_ITERS = 1
 
+#: A fine level polished from a coarse level that stopped (converged or stalled), its tolerance loosened by
+#: ``MULTILEVEL_FINE_TOL_FACTOR``, stops at the first uncut step that gains less than that tolerance, whatever its
+#: scaffold's weight (``newton.Polish``'s ``confirm_light`` False), instead of one more iteration at the lightest
+#: weight to confirm it. Only a fine level after a stall starts stiff (``FINE_KEEP_AFTER_STALL``) and meets that
+#: case: beetle upsampled to 311k, its cut map's fine level, the 4th iteration (uncut, gain 7.5e-5 < 1e-4, weight
+#: 0.125) was followed by a 5th at the lightest (~3 s) that gained 1.7e-6, its step cut to 0.06 by the barrier; iso
+#: mean 1.018396 after the 4th, 1.018394 after the 5th (BENCHMARKS §24). True: confirm, as before stop 29.
+FINE_CONFIRM_LIGHT = False
+
 #: While the seams stage decides on paused maps, a coarse level that paused is prolongated and the fine level waits
 #: there, unpolished (the provisional map is the prolongation; :class:`Levels`). True: the fine level is polished
 #: from it until its own pause, as before stop 27 (beetle upsampled to 311k: 2 fine iterations, 15 s, for a map the
@@ -371,7 +380,7 @@ def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[n
                       guards=guards, scaffold_weight=weight, keep_scaffold=keep,
                       scaffold="until crossing" if bare else True,
                       stall_iters=COARSE_STALL_ITERS if level else FINE_STALL_ITERS if y is not None else STALL_ITERS,
-                      park=park)
+                      park=park, confirm_light=FINE_CONFIRM_LIGHT or level or ftol == tol)
 
     run: Polish | Levels = fine(y)
     if finish is not None:

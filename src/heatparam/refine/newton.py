@@ -42,14 +42,17 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from heatparam.mesh.topology import unique_ints
+from heatparam.mesh.topology import unique_inverse
 from heatparam.refine.energy import (
+    BLOCK_ENTRIES,
+    ENTRY_CHUNK,
     face_step_limits,
     hat_gradients,
     jacobians,
     max_step,
     scatter,
     sd_newton_blocks,
+    sd_newton_entries,
     symmetric_dirichlet,
 )
 from heatparam.refine.scaffold import (
@@ -86,37 +89,49 @@ EXCESS_PREDICT = True
 CROSSING_HALVINGS = 20
 
 class HessianPattern:
-    """Sparsity pattern of the surface's (2n,2n) Hessian, built once; ``matrix(vals)`` sums per-face blocks.
+    """Sparsity pattern of the surface's (2n,2n) Hessian, built once; ``matrix(entries)`` sums the faces' blocks.
 
     The Hessian is a 2×2 block matrix [[H_uu, H_uv], [H_vu, H_vv]] whose four blocks share the vertex-adjacency
     pattern A (n,n), so only the 9 vertex pairs of each face are located in A (one sort of 9m keys, not of the
-    36m entries); column (b, v) of the full CSC matrix holds A's column v twice, rows u then n + u.
+    36m entries); column (b, v) of the full CSC matrix holds A's column v twice, rows u then n + u. Each face's
+    block is symmetric, so it is summed from its 21 distinct entries (``energy.BLOCK_ENTRIES``, as
+    ``energy.sd_newton_entries`` computes them): ``slot`` (21, m) is where each entry goes, and in the full matrix
+    ``mirror`` (21, m) where its transpose goes (a discarded slot for the diagonal).
 
     upper : build only the upper triangle, as sorted CSR, which is what PARDISO reads (``solvers.Factor(...,
-        upper=True)``): the entries (row ≤ column) of the full matrix, the same sums in the same order, at half its
-        memory and without the full matrix's copies and ``triu`` at every iteration (beetle upsampled to 78k:
-        peak RSS 1013 → 932 MB; beetle: the 0.5 s of ``triu`` gone, 2026-12-02). The face-entry map is then int32,
-        the lower entries sent to a discarded slot.
+        upper=True)``): each entry goes once, to whichever of (p, q), (q, p) lies in the upper triangle, at half the
+        full matrix's memory and without its copies and ``triu`` at every iteration (beetle upsampled to 78k: peak
+        RSS 1013 → 932 MB; beetle: the 0.5 s of ``triu`` gone, 2026-12-02). Faces must have three distinct vertices
+        (validated meshes do).
     """
 
     def __init__(self, F: np.ndarray, n: int, upper: bool = False):
-        m = len(F)
         ci, cj = np.divmod(np.arange(9), 3)
         R, C = F[:, ci].ravel(), F[:, cj].ravel()  # (9m,) row and column vertex of corner pair (i, j)
-        key = unique_ints(R * n + C)  # A's pattern as sorted row-major keys u*n + v, once each
+        # A's pattern as sorted row-major keys u*n + v, once each, and the place of each face's pair (i, j) there
+        key, _, kidx = unique_inverse(R * n + C)
         rows = key // n
         ptr = np.searchsorted(rows, np.arange(n + 1))
         deg = np.diff(ptr)
         self.shape = (2 * n, 2 * n)
         self.upper = upper
+        p, q = BLOCK_ENTRIES.T
         if upper:
-            self._upper(F, n, R, C, key, rows, ptr, deg)
+            self.slot, self.mirror = self._upper(F, n, kidx, key, rows, ptr, deg), None
             return
+        inv = self._full(F, n, R, C, key, rows, ptr, deg)
+        pa, pi, qa, qj = p // 3, p % 3, q // 3, q % 3
+        self.slot = inv[:, pa, pi, qa, qj].T.copy()  # (21, m)
+        # the transposed entries' places; the diagonal entries (p == q) once
+        self.mirror = np.where((p == q)[:, None], self.nnz, inv[:, qa, qj, pa, pi].T)
+
+    def _full(self, F, n, R, C, key, rows, ptr, deg) -> np.ndarray:
+        """The full CSC pattern; returns each face's entry (a, i, b, j) place (m,2,3,2,3)."""
+        m = len(F)
         # A is symmetric: column v's rows are row v's columns, so key % n lists each column's rows, sorted
         col, rows = rows, key % n
         nnz = len(rows)
         local = np.searchsorted(key, C * n + R) - ptr[C]  # place of (R, C) in column C
-        del R
         # full CSC layout: column b*n + v starts at b*2nnz + 2 ptr[v]; rows a*n + u sit at a*deg[v] + local
         half = np.empty(2 * nnz, dtype=np.int64)
         at = 2 * ptr[col] + (np.arange(nnz) - ptr[col])
@@ -127,15 +142,17 @@ class HessianPattern:
         self.nnz = 4 * nnz
         base = (2 * ptr[C] + local).reshape(m, 3, 3)  # (f, i, j): offset of pair (F[f,i], F[f,j]) in a half
         degC = deg[C].reshape(m, 3, 3)
-        inv = np.empty((m, 2, 3, 2, 3), dtype=np.int64)  # block entry (a*3+i, b*3+j), as sd_newton_blocks
+        inv = np.empty((m, 2, 3, 2, 3), dtype=np.int64)  # block entry (a*3+i, b*3+j)
         for a in range(2):
             for b in range(2):
                 inv[:, a, :, b, :] = b * 2 * nnz + base + a * degC
-        self.inv = inv.reshape(m, 36)
+        return inv
 
-    def _upper(self, F, n, R, C, key, rows, ptr, deg) -> None:
-        """The upper triangle's sorted CSR pattern and face-entry map, straight from A's rows: row u (x block)
-        holds the columns v ≥ u of A's row u, then n + v for all of them; row n + u the columns n + v, v ≥ u."""
+    def _upper(self, F, n, kidx, key, rows, ptr, deg) -> np.ndarray:
+        """The upper triangle's sorted CSR pattern, straight from A's rows: row u (x block) holds the columns v ≥ u
+        of A's row u, then n + v for all of them; row n + u the columns n + v, v ≥ u. ``kidx`` (9m,): the place in
+        ``key`` of each face's vertex pair (i, j). Returns the places (21, m) of each face's block entries
+        (``energy.BLOCK_ENTRIES``)."""
         m = len(F)
         lo = np.searchsorted(key, np.arange(n) * (n + 1)) - ptr[:-1]  # place of the diagonal in each row
         up = deg - lo
@@ -151,52 +168,41 @@ class HessianPattern:
         indices[s0[rows] + up[rows] + pos] = cols + n
         indices[s1[ru] + off] = cols[isup] + n
         self.indices = indices
-        # face entry (a, i, b, j) = (row a*n + F[f,i], column b*n + F[f,j]); lower entries to the slot past the end
-        loc = np.searchsorted(key, R * n + C) - ptr[R]  # place of C in row R
-        off = loc - lo[R]
-        inv = np.empty((m, 2, 3, 2, 3), dtype=np.int32)  # block entry (a*3+i, b*3+j), as sd_newton_blocks
-        inv[:, 0, :, 0, :] = np.where(off >= 0, s0[R] + off, nnz).reshape(m, 3, 3)
-        inv[:, 0, :, 1, :] = (s0[R] + up[R] + loc).reshape(m, 3, 3)
-        inv[:, 1, :, 0, :] = nnz
-        inv[:, 1, :, 1, :] = np.where(off >= 0, s1[R] + off, nnz).reshape(m, 3, 3)
-        self.inv = inv.reshape(m, 36)
+        # the pair (u, v) at place k of key (row u) sits at s0[u] + (k - ptr[u]) - lo[u] in row u of the x block
+        # (v ≥ u), at s1[u] + ... in row n + u, and its (x, y) coupling at s0[u] + up[u] + (k - ptr[u])
+        start = ptr[:-1]
+        base0, base1, base01 = s0 - start - lo, s1 - start - lo, s0 + up - start
+        kidx = kidx.reshape(m, 9).T.copy()  # (9, m): pair (i, j) of every face, row 3i + j
+        slot = np.empty((21, m), dtype=np.int64)
+        for k, (i, j) in enumerate(zip(*np.triu_indices(3), strict=True)):
+            # of the (u, u) pairs (i, j), (j, i) the one in the upper triangle: F[f,i] ≤ F[f,j]
+            first = F[:, i] <= F[:, j]
+            r = np.where(first, F[:, i], F[:, j])
+            at = np.where(first, kidx[3 * i + j], kidx[3 * j + i])
+            slot[k] = base0[r] + at
+            slot[k + 6] = base1[r] + at
+        for k in range(9):  # (u_i, v_j): row F[f,i], column n + F[f,j]
+            slot[12 + k] = base01[F[:, k // 3]] + kidx[k]
+        return slot
 
-    @property
-    def slots(self) -> int:
-        """How many data slots the face entries sum into: nnz, and with ``upper`` one more for the lower entries."""
-        return self.nnz + 1 if self.upper else self.nnz
-
-    def matrix(self, vals: np.ndarray) -> sp.spmatrix:
-        """The (2n,2n) Hessian summed from the per-face blocks ``vals`` (m,36): full CSC, or (``upper``) its upper
-        triangle as sorted CSR."""
-        return self._wrap(np.bincount(self.inv.ravel(), weights=vals.ravel(), minlength=self.slots))
-
-    def assemble(self, J: np.ndarray, g: np.ndarray, w: np.ndarray, chunk: int | None = None
-                 ) -> tuple[np.ndarray, sp.spmatrix]:
-        """dE/dJ (m,2,2) and the Hessian (as :meth:`matrix`) of E = Σ w_f Ψ(J_f), from ``sd_newton_blocks`` on
-        ``chunk`` faces at a time (default ``ASSEMBLY_CHUNK``) summed in place by ``np.add.at``: the same sums in
-        the same order as :meth:`matrix`'s bincount (bit for bit), but the blocks and their temporaries (~1.2 KB
-        per face) never exist for all faces at once."""
-        m = len(J)
-        chunk = ASSEMBLY_CHUNK if chunk is None else chunk
-        if m <= chunk:  # one chunk: the sums of np.bincount, as matrix(), without np.add.at's per-entry cost
-            grad, blocks = sd_newton_blocks(J, g, w)
-            return grad, self.matrix(blocks.reshape(m, 36))
-        grad = np.empty((m, 2, 2))
-        data = np.zeros(self.slots)
-        for a in range(0, m, chunk):
-            b = min(m, a + chunk)
-            grad[a:b], blocks = sd_newton_blocks(J[a:b], g[a:b], w[a:b])
-            np.add.at(data, self.inv[a:b].ravel(), blocks.ravel())
-        return grad, self._wrap(data)
-
-    def _wrap(self, data: np.ndarray) -> sp.spmatrix:
+    def matrix(self, entries: np.ndarray) -> sp.spmatrix:
+        """The (2n,2n) Hessian summed from the faces' block entries (21, m) (``energy.BLOCK_ENTRIES``): full CSC,
+        or (``upper``) its upper triangle as sorted CSR."""
+        data = np.bincount(self.slot.ravel(), weights=entries.ravel(), minlength=self.nnz + 1)
+        if self.mirror is not None:
+            data += np.bincount(self.mirror.ravel(), weights=entries.ravel(), minlength=self.nnz + 1)
+        data = data[: self.nnz]
         if self.upper:
-            return sp.csr_matrix((data[: self.nnz], self.indices, self.indptr), shape=self.shape)
+            return sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
         return sp.csc_matrix((data, self.indices, self.indptr), shape=self.shape)
 
-#: Faces per chunk of :meth:`HessianPattern.assemble` (its temporaries: ~80 MB; beetle↑311k has 623k faces)
-ASSEMBLY_CHUNK = 65_536
+    def assemble(self, J: np.ndarray, g: np.ndarray, w: np.ndarray, chunk: int = ENTRY_CHUNK
+                 ) -> tuple[np.ndarray, sp.spmatrix]:
+        """dE/dJ (m,2,2) and the Hessian (as :meth:`matrix`) of E = Σ w_f Ψ(J_f), from ``energy.sd_newton_entries``
+        (``chunk`` faces per pass)."""
+        grad, entries = sd_newton_entries(J, g, w, chunk)
+        return grad, self.matrix(entries)
+
 
 #: The polish factorizes with PARDISO whenever it is installed (backend ``auto``): with its analysis reused and no
 #: iterative refinement it measured 0.8 vs 1.65 s on camelhead (11k), 6.1-6.5 vs 9.2-9.8 s on beetle (20k), 2.8-3.0
@@ -268,8 +274,19 @@ def _system(x: np.ndarray, J: np.ndarray, Es: float, F: np.ndarray, g: np.ndarra
         gr = gr + scatter(gJs, sc.F, gs, n + 4)[:n]
     rhs = -np.concatenate([gr[:, 0], gr[:, 1]])
     # the rigid motions (without a scaffold each chart's translations too) span the null space: a tiny shift
-    H = H + sp.identity(2 * n, format=H.format) * (1e-9 * float(H.diagonal().mean()))
-    return _System(sc, E0, H, rhs, pat.upper)
+    return _System(sc, E0, _shifted(H, 1e-9), rhs, pat.upper)
+
+
+def _shifted(H: sp.spmatrix, rel: float) -> sp.spmatrix:
+    """H + rel × mean(diag H) × I. An upper-triangle CSR whose rows all start at their diagonal (the polish's, every
+    unknown in a face) is shifted in place, the same values as the sparse sum without its copy of H (~25 ms per
+    iteration at 363k unknowns)."""
+    if H.format == "csr" and H.has_sorted_indices and len(H.indices):
+        first = H.indptr[:-1]
+        if (np.diff(H.indptr) > 0).all() and np.array_equal(H.indices[first], np.arange(H.shape[0])):
+            H.data[first] += rel * float(H.data[first].mean())
+            return H
+    return H + sp.identity(H.shape[0], format=H.format) * (rel * float(H.diagonal().mean()))
 
 
 def _chart_steps(x: np.ndarray, d: np.ndarray, J: np.ndarray, D: np.ndarray, w_surf: np.ndarray,
@@ -288,16 +305,19 @@ def _chart_steps(x: np.ndarray, d: np.ndarray, J: np.ndarray, D: np.ndarray, w_s
 
     fg, k = groups.face, groups.k
 
-    def energies(t: np.ndarray, which: np.ndarray) -> np.ndarray:
-        """(k,) the energy of the charts ``which`` (k,) bool at their steps t (k,), 0 for the others."""
+    def energies(t: np.ndarray | None, which: np.ndarray | None) -> np.ndarray:
+        """(k,) the energy of the charts ``which`` (k,) bool (None: all) at their steps t (k,) (None: 0), 0 for the
+        others."""
+        if which is None or which.all():  # every face (no copies of the selection)
+            Jt = J if t is None else J + (t[0] if k == 1 else t[fg][:, None, None]) * D
+            return np.bincount(fg, weights=w_surf * symmetric_dirichlet(Jt, w_surf)[1], minlength=k)
         sel = which[fg]
         e = symmetric_dirichlet(J[sel] + t[fg[sel]][:, None, None] * D[sel], w_surf[sel])[1]
         return np.bincount(fg[sel], weights=w_surf[sel] * e, minlength=k)
 
-    everyone = np.ones(k, dtype=bool)
-    E0 = energies(np.zeros(k), everyone)
+    E0 = energies(None, None)
     t = np.minimum(1.0, tmax)
-    E1 = energies(t, everyone)
+    E1 = energies(t, None)
     for _ in range(40):
         bad = ~(E1 < E0) & (t > 0)
         if not bad.any():
@@ -468,15 +488,18 @@ class Polish:
     ``stall_iters``: barrier-limited iterations in a row that gain < ``tol`` before it gives up (the levels of a
     coarse-to-fine polish stop sooner: ``multilevel.COARSE_STALL_ITERS``). ``park`` False: a pause keeps the
     factorization and the Hessian's pattern (for the last of the seams stage's trials, which is usually finished
-    right after: ``pipeline.seams``); True frees them while paused (:meth:`_park`)."""
+    right after: ``pipeline.seams``); True frees them while paused (:meth:`_park`). ``confirm_light`` False: an uncut
+    step that gains < ``tol`` stops the polish whatever the scaffold's weight, without the confirming iteration at
+    the lightest (module docstring, "Stopping"; the finest level after a coarse one:
+    ``multilevel.FINE_CONFIRM_LIGHT``)."""
 
     def __init__(self, uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray], *,
                  max_iters: int = 200, tol: float = 1e-6, backend: str = "auto", bar=None,
                  guards: np.ndarray | None = None, excess_tol: float = 0.0, scaffold_weight: float = 1.0,
                  keep_scaffold: bool = False, scaffold: bool | str = True, groups: np.ndarray | None = None,
-                 stall_iters: int = STALL_ITERS, park: bool = True):
+                 stall_iters: int = STALL_ITERS, park: bool = True, confirm_light: bool = True):
         t0 = time.perf_counter()
-        self.stall_iters, self.park = stall_iters, park
+        self.stall_iters, self.park, self.confirm_light = stall_iters, park, confirm_light
         self.keep_scaffold = keep_scaffold
         self.F, self.g, self.loops, self.bar, self.tol, self.excess_tol = F, g, loops, bar, tol, excess_tol
         n = len(uv)
@@ -608,7 +631,7 @@ class Polish:
                 break
             if gain / self.hist[-1] < tol or low_excess:
                 self.small += 1  # converged only after an uncut step with the lightest scaffold ("Stopping")
-                if t >= full_step and self.scaffold and self.w_scaf > self.w_min:
+                if t >= full_step and self.scaffold and self.w_scaf > self.w_min and self.confirm_light:
                     self.w_scaf = self.w_min
                     continue
                 if t >= full_step or self.small >= self.stall_iters:
