@@ -145,6 +145,13 @@ def test_pardiso_two_level_factorization_for_large_systems_it_orders_itself():
     assert np.linalg.norm(A2 @ f.solve(b) - b) <= 1e-10 * np.linalg.norm(b)
     assert Factor(A, "pardiso", ordering=f.ordering)._f.iparm[23] == 0
     assert Factor(_grid_laplacian(40), "pardiso")._f.iparm[23] == 0
+    # a new pattern of a large system: METIS orders it anew and the factor stays two-level (REORDER_TWO_LEVEL),
+    # instead of the last permutation given (which would mean the classic algorithm)
+    near = sp.coo_matrix(([-0.1, -0.1, 0.2, 0.2], ([0, k + 1, 0, k + 1], [k + 1, 0, 0, k + 1])), shape=A.shape)
+    A3 = (A2 + near).tocsc()
+    f3 = f.refactor(A3)
+    assert f3 is not f and f3._f.iparm[23] == 10 and f3._f.iparm[4] == 2
+    assert np.linalg.norm(A3 @ f3.solve(b) - b) <= 1e-10 * np.linalg.norm(b)
 
 
 @pytest.mark.skipif("pardiso" not in available_backends(), reason="pypardiso not installed")

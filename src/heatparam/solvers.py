@@ -136,6 +136,10 @@ class Factor:
         both, so that alternating patterns would settle; they did not, and the union only added nonzeros (beetle
         upsampled to 311k, the cut mesh's fine level: factors of 54.5-56.3M nonzeros on the unions, 53.2-55.4M on
         each pattern alone; in-process 141.8 → 128.1 s and peak 2417 → 2289 MB, one run each; BENCHMARKS.md §15).
+        From ``TWO_LEVEL_MIN_UNKNOWNS`` unknowns the new pattern gets a new METIS ordering instead
+        (``REORDER_TWO_LEVEL``): only then is the factor two-level, whose refactorizations and solves pay for the
+        ordering (beetle upsampled to 311k, the cut mesh's fine level, 624k unknowns: analysis + factorization
+        1.9 vs 1.6-2.0 s, refactorizations 0.44 vs 0.93 s, solves 0.08 vs 0.23 s; BENCHMARKS §24).
         Other backends: a new :class:`Factor`. When PARDISO analyses anew, this object is freed first (:meth:`free`)
         and cannot solve any more.
         """
@@ -151,7 +155,7 @@ class Factor:
             # this factor is replaced: free MKL's copy of it before the new one is made, not after (beetle
             # upsampled to 311k, the cut mesh's fine level: factors of ~0.5 GB; peak RSS in process 2321 -> 1873 MB,
             # BENCHMARKS §18b)
-            ordering = self.ordering
+            ordering = None if self.n >= TWO_LEVEL_MIN_UNKNOWNS and REORDER_TWO_LEVEL else self.ordering
             self.free()
             return Factor(U, self.backend, upper=True, ordering=ordering)
         return Factor(A, self.backend, upper=upper)
@@ -244,6 +248,10 @@ def solve_unsymmetric(A: sp.spmatrix, b: np.ndarray, backend: str = "auto") -> n
 #: A reused fill-reducing permutation is dropped for a new METIS ordering when its factor has more than this many
 #: times the nonzeros of the factor the permutation was made for (:meth:`Factor.refactor`).
 REORDER_FILL = 1.25
+
+#: A new pattern of a system of ≥ TWO_LEVEL_MIN_UNKNOWNS unknowns gets a new METIS ordering (and so the two-level
+#: factorization, which a given permutation rules out) instead of the last factor's permutation (Factor.refactor)
+REORDER_TWO_LEVEL = True
 
 _DEFAULT_IPARM: np.ndarray | None = None
 

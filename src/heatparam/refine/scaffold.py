@@ -66,8 +66,11 @@ def loop_edges(ranges: list[np.ndarray]) -> np.ndarray:
 
 #: The polish keeps the last iteration's scaffold while each of its triangles keeps at least this fraction of the
 #: signed area it had when triangulated (:func:`scaffold_holds`): the Hessian's sparsity pattern then stays the same
-#: and PARDISO refactorizes without a new analysis (BENCHMARKS.md §19). 0: always re-triangulate.
-SCAFFOLD_KEEP = 0.5
+#: and PARDISO refactorizes without a new analysis (BENCHMARKS.md §19). 0: always re-triangulate. 0.5 until stop
+#: 29; 0.1: beetle upsampled to 311k, its cut map's fine level (stiff after its coarse level stalled), 2 of 4
+#: factorizations in place instead of 1 of 4 (fine polish 12.1 → 10.8 s), energy the same to 10 digits (BENCHMARKS
+#: §24); positivity alone did no better there
+SCAFFOLD_KEEP = 0.1
 
 
 class Scaffold(NamedTuple):
