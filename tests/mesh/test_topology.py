@@ -81,3 +81,19 @@ def test_sort_based_unique_helpers_agree_with_numpy():
         assert np.array_equal(u, unique_ints(x)) and np.array_equal(u, u2)
         assert np.array_equal(first, first2) and np.array_equal(inv.ravel(), inv2)
         assert np.array_equal(u2[inv2], x)
+
+
+def test_packed_sort_is_the_stable_argsort():
+    """``sort_with_order`` / ``stable_argsort`` (each value's index packed into its low bits, one quicksort) give
+    the sorted values and exactly ``np.argsort(kind="stable")``'s permutation (ties in index order), also for
+    negative values, one element, and values too wide to pack (the stable argsort itself then)."""
+    from heatparam.mesh.topology import sort_with_order, stable_argsort
+
+    rng = np.random.default_rng(4)
+    cases = [rng.integers(-5, hi, size) for hi, size in ((3, 500), (1000, 999), (2**30, 1025))]
+    cases += [np.array([7]), np.array([2**62, 0, 5, 2**62, -1]), np.zeros(0, dtype=np.int64)]
+    for x in cases:
+        ref = np.argsort(x, kind="stable")
+        xs, order = sort_with_order(x)
+        assert np.array_equal(order, ref) and np.array_equal(stable_argsort(x), ref)
+        assert np.array_equal(xs, x[ref]) and xs.dtype == x.dtype

@@ -26,20 +26,25 @@ def unique_ints(x: np.ndarray) -> np.ndarray:
 
 
 def sort_with_order(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(x sorted, ``np.argsort(x, kind="stable")``) of a 1-D integer array. Where (range of x) × len(x) fits in
-    int64, each value carries its index in its low digits and one ``np.sort`` (a SIMD quicksort) orders them: 3.3M
-    keys 0.07 vs 0.11 s for the stable argsort alone (2026-12-04); else the stable argsort."""
+    """(x sorted, ``np.argsort(x, kind="stable")``) of a 1-D integer array. Where (range of x) × 2^⌈log₂ len(x)⌉
+    fits in int64, each value carries its index in its low bits and one ``np.sort`` (a SIMD quicksort) orders them:
+    3.3M keys 0.07 vs 0.11 s for the stable argsort alone (2026-12-04); else the stable argsort."""
     x = np.asarray(x).ravel()
     n = len(x)
     if n == 0:
         return x.copy(), np.zeros(0, dtype=np.int64)
     lo, hi = int(x.min()), int(x.max())
-    if (hi - lo + 1) * n >= 2**63:
+    shift = (n - 1).bit_length()  # the index in the low bits: shifts and masks, not divisions
+    if (hi - lo + 1) << shift >= 2**63:
         order = np.argsort(x, kind="stable")
         return x[order], order
-    s = np.sort((x.astype(np.int64) - lo) * n + np.arange(n, dtype=np.int64))
-    q = s // n
-    return (q + lo).astype(x.dtype, copy=False), s - q * n
+    s = (x.astype(np.int64) - lo) << shift
+    s |= np.arange(n, dtype=np.int64)
+    s.sort()
+    keys = s >> shift
+    if lo:
+        keys += lo
+    return keys.astype(x.dtype, copy=False), s & ((1 << shift) - 1)
 
 
 def stable_argsort(x: np.ndarray) -> np.ndarray:

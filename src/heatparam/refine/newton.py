@@ -106,8 +106,7 @@ class HessianPattern:
     """
 
     def __init__(self, F: np.ndarray, n: int, upper: bool = False):
-        ci, cj = np.divmod(np.arange(9), 3)
-        R, C = F[:, ci].ravel(), F[:, cj].ravel()  # (9m,) row and column vertex of corner pair (i, j)
+        R, C = np.repeat(F, 3, axis=1).ravel(), np.tile(F, (1, 3)).ravel()  # (9m,) vertices of corner pair (i, j)
         # A's pattern as sorted row-major keys u*n + v, once each, and the place of each face's pair (i, j) there
         key, _, kidx = unique_inverse(R * n + C)
         rows = key // n
@@ -174,15 +173,16 @@ class HessianPattern:
         base0, base1, base01 = s0 - start - lo, s1 - start - lo, s0 + up - start
         kidx = kidx.reshape(m, 9).T.copy()  # (9, m): pair (i, j) of every face, row 3i + j
         slot = np.empty((21, m), dtype=np.int64)
+        Fc = np.ascontiguousarray(F.T)  # (3, m): corner i of every face
         for k, (i, j) in enumerate(zip(*np.triu_indices(3), strict=True)):
             # of the (u, u) pairs (i, j), (j, i) the one in the upper triangle: F[f,i] ≤ F[f,j]
-            first = F[:, i] <= F[:, j]
-            r = np.where(first, F[:, i], F[:, j])
+            first = Fc[i] <= Fc[j]
+            r = np.where(first, Fc[i], Fc[j])
             at = np.where(first, kidx[3 * i + j], kidx[3 * j + i])
             slot[k] = base0[r] + at
             slot[k + 6] = base1[r] + at
         for k in range(9):  # (u_i, v_j): row F[f,i], column n + F[f,j]
-            slot[12 + k] = base01[F[:, k // 3]] + kidx[k]
+            slot[12 + k] = base01[Fc[k // 3]] + kidx[k]
         return slot
 
     def matrix(self, entries: np.ndarray) -> sp.spmatrix:
