@@ -167,15 +167,25 @@ def spectral_conformal(V: np.ndarray, F: np.ndarray, backend: str = "auto", meth
 
 
 def _inverse_iteration(b: np.ndarray, solve, x: np.ndarray, max_solves: int) -> tuple[np.ndarray, int]:
-    """x ← solve(B x), B-normalized, until it moves by less than SCP_TOL (B-norm) or after max_solves solves."""
+    """x ← solve(B x), B-normalized, until it moves by less than SCP_TOL (B-norm) or after max_solves solves. B is
+    zero inside, so B x and the B-norms read the boundary entries only (full-length passes: ~0.03 s per solve at
+    624k unknowns)."""
+    bi = np.flatnonzero(b)
+    bb = b[bi]
+    rhs = np.zeros_like(x)
     solves = 0
+    xb = x[bi]
     while solves < max_solves:
-        y = solve(b * x)
+        rhs[bi] = bb * xb
+        y = solve(rhs)
         solves += 1
-        y = y / np.sqrt(y @ (b * y))
-        d = y - x
-        x = y
-        if d @ (b * d) <= SCP_TOL**2:  # the B-unit layout moved by less than SCP_TOL
+        yb = y[bi]
+        scale = 1.0 / np.sqrt(yb @ (bb * yb))
+        y *= scale
+        yb *= scale
+        d = yb - xb
+        x, xb = y, yb
+        if d @ (bb * d) <= SCP_TOL**2:  # the B-unit layout moved by less than SCP_TOL
             break
     return x, solves
 
