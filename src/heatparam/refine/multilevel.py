@@ -24,6 +24,12 @@ COARSE_FRACTION = 1 / 8  # each coarser level has about this fraction of the ver
 #                          repair of the prolongation's flips failed, at 1/6.5 it needed 7 rounds) ...
 COARSE_MIN = 8_000  # ... but at least this many; levels of >= refine_multilevel vertices get a coarser level too
 
+#: A coarse level of at least this many vertices gets a coarser level of its own even below ``refine_multilevel``
+#: (0: only from ``refine_multilevel``): camelhead upsampled to 182k, its 27.6k level polished from the conformal
+#: layout (energy 128) took 15 Newton iterations (2.4-2.6 s); from its own 8k level, 5 (0.8 s) after 14 cheap ones,
+#: the same fine iterations and iso mean (2.05883), refine 9.9-10.1 → 9.5-9.6 s (BENCHMARKS §24)
+LEVEL_MULTILEVEL_MIN = 20_000
+
 REPAIR_RINGS = 8  # each repair round re-solves the flipped faces' 8-ring neighbourhoods ...
 
 REPAIR_ROUNDS = 12  # ... at most this many rounds
@@ -263,7 +269,9 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
     local = np.full(n, -1, dtype=np.int64)
     local[ids] = np.arange(len(ids))
     ears = boundary_faces(F if guards is None else np.vstack([F, guards]), locked)
-    crun, cml = multilevel_polish(V[ids], T, x[ids], cloops, gc, ac, min_vertices=min_vertices,
+    crun, cml = multilevel_polish(V[ids], T, x[ids], cloops, gc, ac,
+                                  min_vertices=min(min_vertices, LEVEL_MULTILEVEL_MIN) if LEVEL_MULTILEVEL_MIN else
+                                  min_vertices,
                                   max_iters=max_iters, tol=tol, backend=backend, progress=progress,
                                   guards=local[ears], label=f"coarse, {len(ids)} vertices",
                                   pause_excess=pause_excess if pause_coarse > 0 else 0.0, pause_coarse=pause_coarse,
