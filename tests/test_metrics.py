@@ -349,3 +349,27 @@ def test_inverted_loops_find_a_hole_covered_twice():
     assert s["flips"] == 0 and s["boundary_crossings"] == 0
     assert s["inverted_loops"] == 1 and s["bijective"] is False
     assert bijectivity(z, F, g) == (0, 1)  # not a start candidate
+
+
+def test_weighted_quantile_is_the_stable_sort_s():
+    """The p95 quantiles sort by quicksort unless values tie (then stably): the same value as a stable sort's
+    cumulative weights give, with and without ties (exact isometries, flipped faces' inf)."""
+    from heatparam.metrics import _weighted_quantile
+
+    rng = np.random.default_rng(8)
+
+    def reference(x, w, q):
+        order = np.argsort(x, kind="stable")
+        cw = np.cumsum(w[order])
+        return float(x[order[min(int(np.searchsorted(cw, q * cw[-1], side="left")), len(x) - 1)]])
+
+    for ties in (False, True):
+        for _ in range(50):
+            n = int(rng.integers(1, 400))
+            x = 1.0 + rng.random(n)
+            if ties:
+                x[rng.random(n) < 0.4] = 1.0
+                x[rng.random(n) < 0.1] = np.inf
+            w = rng.random(n)
+            for q in (0.0, 0.5, 0.95, 1.0):
+                assert _weighted_quantile(x, w, q) == reference(x, w, q)

@@ -244,8 +244,13 @@ def per_face_distortion(
 
 
 def _weighted_quantile(x: np.ndarray, w: np.ndarray, q: float) -> float:
-    """Smallest value whose cumulative weight fraction reaches ``q`` (inf values sort last)."""
-    order = np.argsort(x, kind="stable")
+    """Smallest value whose cumulative weight fraction reaches ``q`` (inf values sort last). Sorted by numpy's
+    quicksort, which without ties is the stable sort's unique order (618k values: 18 vs 78 ms); with ties (flipped
+    faces' inf, exact isometries) by the stable sort, so that the weights add up in the same order."""
+    order = np.argsort(x)
+    xs = x[order]
+    if len(x) > 1 and (xs[1:] == xs[:-1]).any():
+        order = np.argsort(x, kind="stable")
     cw = np.cumsum(w[order])
     i = int(np.searchsorted(cw, q * cw[-1], side="left"))
     return float(x[order[min(i, len(x) - 1)]])
