@@ -269,9 +269,8 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
     local = np.full(n, -1, dtype=np.int64)
     local[ids] = np.arange(len(ids))
     ears = boundary_faces(F if guards is None else np.vstack([F, guards]), locked)
-    crun, cml = multilevel_polish(V[ids], T, x[ids], cloops, gc, ac,
-                                  min_vertices=min(min_vertices, LEVEL_MULTILEVEL_MIN) if LEVEL_MULTILEVEL_MIN else
-                                  min_vertices,
+    level_min = min(min_vertices, LEVEL_MULTILEVEL_MIN) if LEVEL_MULTILEVEL_MIN else min_vertices
+    crun, cml = multilevel_polish(V[ids], T, x[ids], cloops, gc, ac, min_vertices=level_min,
                                   max_iters=max_iters, tol=tol, backend=backend, progress=progress,
                                   guards=local[ears], label=f"coarse, {len(ids)} vertices",
                                   pause_excess=pause_excess if pause_coarse > 0 else 0.0, pause_coarse=pause_coarse,

@@ -174,15 +174,15 @@ class HessianPattern:
         kidx = kidx.reshape(m, 9).T.copy()  # (9, m): pair (i, j) of every face, row 3i + j
         slot = np.empty((21, m), dtype=np.int64)
         Fc = np.ascontiguousarray(F.T)  # (3, m): corner i of every face
-        for k, (i, j) in enumerate(zip(*np.triu_indices(3), strict=True)):
+        for k, (i, j) in enumerate(BLOCK_ENTRIES[:6].tolist()):
             # of the (u, u) pairs (i, j), (j, i) the one in the upper triangle: F[f,i] ≤ F[f,j]
             first = Fc[i] <= Fc[j]
             r = np.where(first, Fc[i], Fc[j])
             at = np.where(first, kidx[3 * i + j], kidx[3 * j + i])
             slot[k] = base0[r] + at
             slot[k + 6] = base1[r] + at
-        for k in range(9):  # (u_i, v_j): row F[f,i], column n + F[f,j]
-            slot[12 + k] = base01[Fc[k // 3]] + kidx[k]
+        for k, (i, j) in enumerate(BLOCK_ENTRIES[12:].tolist()):  # (u_i, v_j): row F[f,i], column n + F[f,j]
+            slot[12 + k] = base01[Fc[i]] + kidx[3 * i + j - 3]
         return slot
 
     def matrix(self, entries: np.ndarray) -> sp.spmatrix:
