@@ -192,3 +192,33 @@ def test_a_two_level_factor_is_checked_once_per_matrix(monkeypatch):
     x = f.solve(b)
     f.solve(b)
     assert len(calls) == 2 and np.linalg.norm(A2 @ x - b) <= 1e-10 * np.linalg.norm(b)
+
+
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="pypardiso not installed")
+def test_pardiso_analysis_alone_then_a_numerical_factorization():
+    rng = np.random.default_rng(4)
+    A = _spd(seed=4)
+    b = rng.standard_normal(A.shape[0])
+    ref = Factor(A, "pardiso")
+    P = sp.triu(A, format="csr")
+    P.sort_indices()
+    P.data[:] = 0.0  # the pattern alone: its values are not read
+    f = Factor(P, "pardiso", upper=True, numeric=False)
+    assert f.symbolic and f.ordering[0] is not None
+    with pytest.raises(RuntimeError, match="analysis only"):
+        f.solve(b)
+    f2 = f.refactor(A)  # A's pattern is the analysed one: numerical factorization, in place
+    assert f2 is f and not f.symbolic
+    assert np.array_equal(f.ordering[0], ref.ordering[0])  # the ordering a full factorization makes
+    assert np.array_equal(f.solve(b), ref.solve(b))  # the same factor: the same solution, bit for bit
+    # a matrix of another pattern: analysed anew, as if the analysis had never been made
+    g = Factor(P, "pardiso", upper=True, numeric=False)
+    B = A + sp.coo_matrix(([-0.1, -0.1, 0.2, 0.2], ([0, 399, 0, 399], [399, 0, 0, 399])), shape=A.shape)
+    assert solvers.within(P, sp.triu(B, format="csr")) is None  # (0,399) is new
+    g2 = g.refactor(B)
+    assert g2 is not g and not g2.symbolic
+    assert np.array_equal(g2.solve(b), Factor(B, "pardiso").solve(b))
+    with pytest.raises(RuntimeError, match="freed"):
+        g.solve(b)
+    with pytest.raises(ValueError, match="pardiso"):
+        Factor(A, "scipy", numeric=False)

@@ -58,17 +58,23 @@ class Factor:
     ordering : PARDISO only: (fill-reducing permutation (n,), its factor's nonzeros) of an earlier analysis of a
         similar pattern, used instead of a new METIS ordering unless its factor has more than ``REORDER_FILL`` ×
         those nonzeros (:meth:`refactor`).
+    numeric : False (PARDISO only): the symbolic analysis of A's pattern alone (its values are not read); the
+        object cannot solve until :meth:`refactor` has factorized a matrix of that pattern (or one within it, which
+        is then a numerical factorization only). A matrix of another pattern is analysed anew there as if this
+        object had never been made. For an analysis made ahead of time, on another thread
+        (``refine.newton.prepare_hessian``).
     """
 
     def __init__(self, A: sp.spmatrix, backend: str = "auto", upper: bool = False,
-                 ordering: tuple[np.ndarray, int] | None = None):
+                 ordering: tuple[np.ndarray, int] | None = None, numeric: bool = True):
         if backend == "auto":
             backend = available_backends()[0]
         if backend not in available_backends():
             raise ValueError(f"solver backend {backend!r} is not installed (available: {available_backends()})")
-        if upper and backend != "pardiso":
-            raise ValueError(f"an upper-triangle matrix needs the pardiso backend, not {backend!r}")
+        if (upper or not numeric) and backend != "pardiso":
+            raise ValueError(f"an upper triangle or an analysis alone needs the pardiso backend, not {backend!r}")
         self.backend = backend
+        self.symbolic = not numeric  # only analysed: nothing to solve with yet
         self.n = A.shape[0]
         self.ordering: tuple[np.ndarray, int] | None = None  # PARDISO's, for refactor() (set below)
         if backend == "cholespy":
@@ -87,7 +93,7 @@ class Factor:
             import pypardiso
 
             self._T = A if upper else _upper(A)  # PARDISO reads the upper triangle of a symmetric matrix
-            self._f = self._pardiso(pypardiso, ordering)
+            self._f = self._pardiso(pypardiso, ordering, numeric)
             if ordering is not None and self._f.iparm[17] > REORDER_FILL * ordering[1]:
                 self._f.free_memory(everything=True)  # the old ordering fills in too much here: a new one
                 self._f = self._pardiso(pypardiso, None)
@@ -95,9 +101,9 @@ class Factor:
             self.ordering = (self._f.perm, ordering[1] if ordering is not None and self._f.perm is ordering[0]
                              else int(self._f.iparm[17]))
 
-    def _pardiso(self, pypardiso, ordering: tuple[np.ndarray, int] | None):
-        """A PARDISO solver that has factorized ``self._T``: with METIS's ordering, returned in its ``perm``
-        (iparm 5 = 2), or with ``ordering``'s permutation (iparm 5 = 1)."""
+    def _pardiso(self, pypardiso, ordering: tuple[np.ndarray, int] | None, numeric: bool = True):
+        """A PARDISO solver that has factorized ``self._T`` (``numeric`` False: analysed its pattern): with METIS's
+        ordering, returned in its ``perm`` (iparm 5 = 2), or with ``ordering``'s permutation (iparm 5 = 1)."""
         f = pypardiso.PyPardisoSolver(mtype=2)  # real symmetric positive definite
         _remember_mkl(f)
         f.iparm[:] = _pardiso_defaults(pypardiso)
@@ -115,7 +121,12 @@ class Factor:
         else:
             f.perm, f.iparm[4] = ordering[0], 1
         try:
-            f.factorize(self._T)
+            if numeric:
+                f.factorize(self._T)
+            else:  # phase 11, as ``factorize`` calls phase 12 (the matrix checked, no copy of it kept)
+                f._check_A(self._T)
+                f.set_phase(11)
+                f._call_pardiso(self._T, np.zeros((self.n, 1)))
         except pypardiso.pardiso_wrapper.PyPardisoError as exc:  # e.g. -4, a zero pivot: NaN in the matrix
             f.free_memory(everything=True)
             raise np.linalg.LinAlgError(f"PARDISO could not factorize the matrix ({exc})") from None
@@ -149,9 +160,12 @@ class Factor:
                     and np.array_equal(U.indices, self._T.indices))
             T = U if same else within(self._T, U)  # the same pattern (the polish kept its scaffold): as it is
             if T is not None and _pardiso_numeric(self._f, T):
-                self._T = T
+                self._T, self.symbolic = T, False
                 return self
             del T
+            if self.symbolic:  # an analysis made ahead of time, of another pattern: as if it had never been made
+                self.free()
+                return Factor(U, self.backend, upper=True)
             # this factor is replaced: free MKL's copy of it before the new one is made, not after (beetle
             # upsampled to 311k, the cut mesh's fine level: factors of ~0.5 GB; peak RSS in process 2321 -> 1873 MB,
             # BENCHMARKS §18b)
@@ -191,6 +205,8 @@ class Factor:
         else:
             if self._f is None:
                 raise RuntimeError("this PARDISO factorization was freed (Factor.free, or replaced by refactor)")
+            if self.symbolic:
+                raise RuntimeError("this PARDISO object holds an analysis only: refactor() a matrix first")
             x = self._f.solve(self._T, b).reshape(b.shape)  # same matrix object: pypardiso reuses the factor
             # a two-level factor's first solve is checked (a bad factor solves every right-hand side badly)
             if self._f.iparm[23] == 10 and getattr(self, "_checked", None) is not self._T:

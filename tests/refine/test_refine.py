@@ -10,6 +10,7 @@ from heatparam.layout import tutte
 from heatparam.layout.conformal import conformal_layout
 from heatparam.mesh import boundary_loops
 from heatparam.refine import energy, multilevel, newton, scaffold, start
+from heatparam.solvers import available_backends
 
 from conftest import excess_cone, shared_mesh
 
@@ -581,6 +582,28 @@ def test_fine_level_starts_with_the_scaffold_its_converged_coarse_level_ended_wi
     assert run.report()["converged"] and stiff.report()["converged"]
     assert run.it < stiff.it, (run.it, stiff.it)
     assert run.report()["energy_end"] == pytest.approx(stiff.report()["energy_end"], rel=1e-4)
+
+
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="pypardiso not installed")
+def test_fine_hessian_analysed_during_the_coarse_levels_gives_the_same_polish(cap_from_tutte, monkeypatch):
+    """``PREPARE_FINE``: the fine level's Hessian pattern and PARDISO analysis are made on another thread while the
+    coarse level is polished, and its first factorization is then numerical only: the very same layout and
+    report as without."""
+    s, g, area, loops, x0 = cap_from_tutte
+    monkeypatch.setattr(multilevel, "COARSE_MIN", 1500)
+    kw = dict(min_vertices=len(s.V), max_iters=200, tol=1e-6, backend="pardiso")
+    made = []
+    monkeypatch.setattr(multilevel, "prepare_hessian", lambda *a: made.append(newton.prepare_hessian(*a)) or made[-1])
+    runs = {}
+    for prepare in (False, True):
+        monkeypatch.setattr(multilevel, "PREPARE_FINE", prepare)
+        runs[prepare], ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
+        assert ml["used"]
+    assert len(made) == 1 and made[0].analysis.done()
+    used = made[0].analysis.result()
+    assert not used.symbolic  # numerically factorized by the fine polish: the analysis was used
+    assert np.array_equal(runs[True].x, runs[False].x)
+    assert runs[True].report() | {"seconds": 0} == runs[False].report() | {"seconds": 0}
 
 
 def test_fine_level_stops_without_confirming_at_the_lightest_scaffold(cap_from_tutte, monkeypatch):

@@ -14,7 +14,7 @@ from heatparam.layout.tutte import mean_value_laplacian
 from heatparam.mesh.planar import make_ccw, triangulate
 from heatparam.mesh.topology import face_areas, unique_inverse
 from heatparam.refine.energy import det, jacobians, normalized_energy, surface_gradients
-from heatparam.refine.newton import STALL_ITERS, Polish
+from heatparam.refine.newton import STALL_ITERS, Polish, prepare_hessian
 from heatparam.refine.scaffold import loop_edges, loop_ranges
 from heatparam.refine.untangle import untangle
 
@@ -32,6 +32,7 @@ LEVEL_MULTILEVEL_MIN = 20_000
 
 REPAIR_RINGS = 8  # each repair round re-solves the flipped faces' 8-ring neighbourhoods ...
 
+PROLONGATED_FIRST = True
 REPAIR_ROUNDS = 12  # ... at most this many rounds
 
 MULTILEVEL_MIN_EXCESS = 1e-2  # coarse-to-fine only when the start's energy exceeds 1 (isometry) by more than this
@@ -99,6 +100,11 @@ FINE_STALL_ITERS = 1
 #: mean 1.018396 after the 4th, 1.018394 after the 5th (BENCHMARKS §24). True: confirm, as before stop 29.
 FINE_CONFIRM_LIGHT = False
 
+#: The finest level's Hessian pattern and its symbolic analysis are made on a thread of their own while the coarse
+#: levels are polished (``newton.prepare_hessian``; not while the seams stage may pause the polish, which would hold
+#: them meanwhile): camelhead upsampled to 182k, BENCHMARKS.md §25
+PREPARE_FINE = True
+
 #: While the seams stage decides on paused maps, a coarse level that paused is prolongated and the fine level waits
 #: there, unpolished (the provisional map is the prolongation; :class:`Levels`). True: the fine level is polished
 #: from it until its own pause, as before stop 27 (beetle upsampled to 311k: 2 fine iterations, 15 s, for a map the
@@ -153,15 +159,17 @@ def prolongate(uv: np.ndarray, uvc0: np.ndarray, T: np.ndarray, uvc: np.ndarray)
     l0 = 1.0 - l1 - l2
     return l0[:, None] * uvc[T[face, 0]] + l1[:, None] * uvc[T[face, 1]] + l2[:, None] * uvc[T[face, 2]]
 
-def repair_flips(x: np.ndarray, ref: np.ndarray, F: np.ndarray, g: np.ndarray, locked: np.ndarray
-                 ) -> tuple[np.ndarray | None, int, int]:
+def repair_flips(x: np.ndarray, ref: np.ndarray, F: np.ndarray, g: np.ndarray, locked: np.ndarray,
+                 max_rounds: int = REPAIR_ROUNDS) -> tuple[np.ndarray | None, int, int]:
     """Unflip the few faces a prolongation flips (needle triangles straddling a coarse edge): re-solve the union of
     the flipped faces' ``REPAIR_RINGS``-ring neighbourhoods as mean value (Floater) interpolants with the weights
     of the layout ``ref`` (n,2) (the bijective start: locally an affine image of it is flip-free; weights of the
     3D surface measured worse, camelhead↑45k start energy 1.891 vs 1.877; or ``x`` itself, which those weights
     reproduce wherever its vertex stars are valid: the fallback, start energy 2.88 vs 1.87 at 182k) and the rest
-    of ``x`` (n,2) as boundary values; grow the union around what is still flipped, at most ``REPAIR_ROUNDS``
-    times.
+    of ``x`` (n,2) as boundary values; grow the union around what is still flipped, at most ``max_rounds`` times.
+    A round whose union did not grow (what is still flipped lies within it, walled in by locked vertices) would
+    repeat the last solve exactly: the repair stops there, failed (cylinder_noisy02's start repair ran 12 such
+    rounds twice, 0.33 s each; a halftunnel one 12, ``BENCHMARKS.md`` §25).
     ``locked`` (n,) bool: vertices never moved.
     Returns (layout or None when flips remain, faces flipped at first, rounds)."""
     n = len(x)
@@ -175,12 +183,15 @@ def repair_flips(x: np.ndarray, ref: np.ndarray, F: np.ndarray, g: np.ndarray, l
     adj = igl.adjacency_matrix(F)  # the mesh's edges, as untangle_flips walks them
     if adj.shape[0] < n:  # vertices past the last one F uses: no neighbours
         adj.resize((n, n))
-    y, region = x.copy(), np.zeros(n, dtype=bool)
-    for r in range(1, REPAIR_ROUNDS + 1):
+    y, region, size = x.copy(), np.zeros(n, dtype=bool), -1
+    for r in range(1, max_rounds + 1):
         grow = np.zeros(n, dtype=bool)
         grow[F[bad].ravel()] = True
         region |= grow_rings(grow, adj, REPAIR_RINGS)
         free = region & ~locked
+        if (k := int(free.sum())) == size:  # the same free vertices as the last round: the same solve and flips
+            return None, first, r - 1
+        size = k
         fi, fx = np.flatnonzero(free), np.flatnonzero(~free)
         # only the faces at a free vertex: their rows of the mean value Laplacian are whole (a free vertex's faces
         # are all among them), and only their Jacobians change (the region only grows, so every vertex moved so
@@ -193,7 +204,7 @@ def repair_flips(x: np.ndarray, ref: np.ndarray, F: np.ndarray, g: np.ndarray, l
         bad = np.flatnonzero(now)
         if len(bad) == 0:
             return y, first, r
-    return None, first, REPAIR_ROUNDS
+    return None, first, max_rounds
 
 
 def grow_rings(mask: np.ndarray, adj: sp.spmatrix, rings: int) -> np.ndarray:
@@ -229,7 +240,8 @@ def boundary_faces(F: np.ndarray, boundary: np.ndarray) -> np.ndarray:
 
 def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.ndarray], g: np.ndarray,
                    *, min_vertices: int, max_iters: int, tol: float, backend: str, progress=None,
-                   guards: np.ndarray | None = None, pause_excess: float = 0.0, pause_coarse: float = 0.0
+                   guards: np.ndarray | None = None, pause_excess: float = 0.0, pause_coarse: float = 0.0,
+                   level: bool = False
                    ) -> tuple[np.ndarray | None, dict, Callable[[], tuple[np.ndarray | None, dict]] | None]:
     """A start for the fine polish from a coarse one: :func:`coarse_vertices` and :func:`coarse_mesh` in the
     bijective layout ``x`` (n,2), :func:`multilevel_polish` of the coarse mesh from ``x`` (itself coarse-to-fine
@@ -299,14 +311,20 @@ def coarse_to_fine(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.n
                                            f"{e0:.4g}: its prolongation would be a poor start")}
         y = prolongate(x, x[ids], T, xc)
         y[ids] = xc
-        z, flipped, rounds = repair_flips(y, x, F, g, locked)
-        out["repair_weights"] = "start layout"
-        if z is None:
-            # the start's weights fail where the start is far from an affine image of the result (LSCM's scale
-            # varies a lot across a repair region: camelhead↑727k's 111k-vertex level, 4 flips grew to 443); weights
-            # of the prolongated layout itself keep it wherever its stars are valid, and unfold the rest (1 round)
-            z, _, rounds = repair_flips(y, y, F, g, locked)
-            out["repair_weights"] = "prolongated layout"
+        # the start's weights fail where the start is far from an affine image of the result (LSCM's scale varies a
+        # lot across a repair region: camelhead↑727k's 111k-vertex level, 4 flips grew to 443); weights of the
+        # prolongated layout itself keep it wherever its stars are valid, and unfold the rest (1 round). A coarse
+        # level tries those first (PROLONGATED_FIRST)
+        weights = [("start layout", x), ("prolongated layout", y)]
+        if level and PROLONGATED_FIRST:
+            weights.reverse()
+        z, flipped, rounds = None, 0, 0
+        for k, (name, ref) in enumerate(weights):
+            z, f, rounds = repair_flips(y, ref, F, g, locked)
+            flipped = f if k == 0 else flipped  # the prolongation's flips: what the first repair found
+            out["repair_weights"] = name
+            if z is not None:
+                break
         if z is None:
             # flips beside a locked non-convex boundary, where mean value interpolation cannot help (a 50k-vertex
             # halftunnel from Tutte: 18 left after 12 rounds of both): untangle their neighbourhoods
@@ -355,20 +373,24 @@ def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[n
     :class:`newton.Polish`'s (False: a pause keeps the factorization).
     Returns (the fine level's :class:`newton.Polish` or :class:`Levels`: its layout ``x`` (n,2) and ``report()``,
     coarse-to-fine report; the report is updated in place when a paused coarse level is finished)."""
-    y, finish = None, None
+    y, finish, prepared = None, None, None
     if not 0 < min_vertices <= len(V):
         ml: dict = {"used": False, "reason": "small mesh"}
     elif not normalized_energy(x, F, g, area) > 1.0 + MULTILEVEL_MIN_EXCESS:
         ml = {"used": False, "reason": "the start is already within 1% of an isometry"}
     else:
+        if PREPARE_FINE and not level and pause_excess == 0:  # the fine level's Hessian analysed meanwhile
+            prepared = prepare_hessian(F, len(V), backend)
         try:
             y, ml, finish = coarse_to_fine(V, F, x, loops, g, min_vertices=min_vertices, max_iters=max_iters,
                                            tol=tol, backend=backend, progress=progress, guards=guards,
-                                           pause_excess=pause_excess, pause_coarse=pause_coarse)
+                                           pause_excess=pause_excess, pause_coarse=pause_coarse, level=level)
         except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:  # only a faster start: never fatal
             ml = {"used": False, "reason": f"coarse level failed: {exc}"}
 
     def fine(y: np.ndarray | None) -> Polish:
+        nonlocal prepared
+        ready, prepared = prepared, None  # for one polish only
         ftol, weight, keep, bare = tol, 1.0, False, False
         if y is not None:
             cp = ml["coarse_polish"]
@@ -387,7 +409,7 @@ def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[n
                       guards=guards, scaffold_weight=weight, keep_scaffold=keep,
                       scaffold="until crossing" if bare else True,
                       stall_iters=COARSE_STALL_ITERS if level else FINE_STALL_ITERS if y is not None else STALL_ITERS,
-                      park=park, confirm_light=FINE_CONFIRM_LIGHT or level or ftol == tol)
+                      park=park, confirm_light=FINE_CONFIRM_LIGHT or level or ftol == tol, prepared=ready)
 
     run: Polish | Levels = fine(y)
     if finish is not None:

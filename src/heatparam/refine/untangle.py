@@ -19,7 +19,6 @@ Used by :func:`heatparam.refine.multilevel.coarse_to_fine` where the mean value 
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import minimize
 
 from heatparam.refine.energy import det, jacobians, scatter
 
@@ -87,6 +86,8 @@ def untangle(x: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, free
         cof[:, 0, 0], cof[:, 0, 1], cof[:, 1, 0], cof[:, 1, 1] = J[:, 1, 1], -J[:, 1, 0], -J[:, 0, 1], J[:, 0, 0]
         dJ = w[:, None, None] * ((1.0 - lam) * 2.0 * J / chi[:, None, None] + dD[:, None, None] * cof)
         return E, scatter(dJ, Fr, gr, n)[fi].ravel()
+
+    from scipy.optimize import minimize  # here: only a failed repair untangles (the import is 0.06 s)
 
     def run(eps: float) -> None:
         res = minimize(energy, y[fi].ravel(), args=(eps,), jac=True, method="L-BFGS-B",
