@@ -20,8 +20,6 @@ from heatparam.refine.untangle import untangle
 
 COARSE_FRACTION = 1 / 8  # each coarser level has about this fraction of the vertices (camelhead↑727k: at 1/27 the
 #                          repair of the prolongation's flips failed, at 1/6.5 it needed 7 rounds) ...
-
-#                          repair of the prolongation's flips failed, at 1/6.5 it needed 7 rounds) ...
 COARSE_MIN = 8_000  # ... but at least this many; levels of >= refine_multilevel vertices get a coarser level too
 
 #: A coarse level of at least this many vertices gets a coarser level of its own even below ``refine_multilevel``
@@ -32,8 +30,14 @@ LEVEL_MULTILEVEL_MIN = 20_000
 
 REPAIR_RINGS = 8  # each repair round re-solves the flipped faces' 8-ring neighbourhoods ...
 
-PROLONGATED_FIRST = True
 REPAIR_ROUNDS = 12  # ... at most this many rounds
+
+#: A coarse level's prolongation (to a level that is itself coarse) is repaired with the prolongated layout's own
+#: weights first, the start's second (the finest level: the other way round, ``repair_flips``): camelhead upsampled
+#: to 182k, its 27.6k level's start-weight repair failed after 12 rounds (0.88 s; 2 flipped faces, up to 8110 as
+#: its region grew) before these succeeded in one (0.02 s); its coarse levels 1.54 → 0.71 s, the same map
+#: (BENCHMARKS.md §25)
+PROLONGATED_FIRST = True
 
 MULTILEVEL_MIN_EXCESS = 1e-2  # coarse-to-fine only when the start's energy exceeds 1 (isometry) by more than this
 
@@ -168,8 +172,8 @@ def repair_flips(x: np.ndarray, ref: np.ndarray, F: np.ndarray, g: np.ndarray, l
     reproduce wherever its vertex stars are valid: the fallback, start energy 2.88 vs 1.87 at 182k) and the rest
     of ``x`` (n,2) as boundary values; grow the union around what is still flipped, at most ``max_rounds`` times.
     A round whose union did not grow (what is still flipped lies within it, walled in by locked vertices) would
-    repeat the last solve exactly: the repair stops there, failed (cylinder_noisy02's start repair ran 12 such
-    rounds twice, 0.33 s each; a halftunnel one 12, ``BENCHMARKS.md`` §25).
+    repeat the last solve exactly: the repair stops there, failed (cylinder_noisy02's start-weight repairs ran 11
+    such rounds after the first, twice: 0.41-0.45 → 0.13 s each, the same result; ``BENCHMARKS.md`` §25).
     ``locked`` (n,) bool: vertices never moved.
     Returns (layout or None when flips remain, faces flipped at first, rounds)."""
     n = len(x)
