@@ -119,19 +119,21 @@ class HessianPattern:
         if upper:
             self.slot, self.mirror = self._upper(F, n, kidx, key, rows, ptr, deg), None
             return
-        inv = self._full(F, n, R, C, key, rows, ptr, deg)
+        inv = self._full(F, n, C, kidx, key, rows, ptr, deg)
         pa, pi, qa, qj = p // 3, p % 3, q // 3, q % 3
         self.slot = inv[:, pa, pi, qa, qj].T.copy()  # (21, m)
         # the transposed entries' places; the diagonal entries (p == q) once
         self.mirror = np.where((p == q)[:, None], self.nnz, inv[:, qa, qj, pa, pi].T)
 
-    def _full(self, F, n, R, C, key, rows, ptr, deg) -> np.ndarray:
-        """The full CSC pattern; returns each face's entry (a, i, b, j) place (m,2,3,2,3)."""
+    def _full(self, F, n, C, kidx, key, rows, ptr, deg) -> np.ndarray:
+        """The full CSC pattern; returns each face's entry (a, i, b, j) place (m,2,3,2,3). ``kidx`` (9m,): the place
+        in ``key`` of each face's vertex pair (i, j)."""
         m = len(F)
         # A is symmetric: column v's rows are row v's columns, so key % n lists each column's rows, sorted
         col, rows = rows, key % n
         nnz = len(rows)
-        local = np.searchsorted(key, C * n + R) - ptr[C]  # place of (R, C) in column C
+        # place of (R, C) = (F[f,i], F[f,j]) in column C: where the key C*n + R, the face's pair (j, i), sits
+        local = kidx.reshape(m, 3, 3).transpose(0, 2, 1).ravel() - ptr[C]
         # full CSC layout: column b*n + v starts at b*2nnz + 2 ptr[v]; rows a*n + u sit at a*deg[v] + local
         half = np.empty(2 * nnz, dtype=np.int64)
         at = 2 * ptr[col] + (np.arange(nnz) - ptr[col])
