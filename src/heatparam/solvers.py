@@ -101,6 +101,12 @@ class Factor:
             self.ordering = (self._f.perm, ordering[1] if ordering is not None and self._f.perm is ordering[0]
                              else int(self._f.iparm[17]))
 
+    @property
+    def _two_level_size(self) -> bool:
+        """Large enough for PARDISO's two-level factorization where PARDISO orders the system itself
+        (:data:`TWO_LEVEL_MIN_UNKNOWNS`; :meth:`refactor` then asks for a new ordering, ``REORDER_TWO_LEVEL``)."""
+        return self.n >= TWO_LEVEL_MIN_UNKNOWNS
+
     def _pardiso(self, pypardiso, ordering: tuple[np.ndarray, int] | None, numeric: bool = True):
         """A PARDISO solver that has factorized ``self._T`` (``numeric`` False: analysed its pattern): with METIS's
         ordering, returned in its ``perm`` (iparm 5 = 2), or with ``ordering``'s permutation (iparm 5 = 1)."""
@@ -115,7 +121,7 @@ class Factor:
         # time (1.47-1.60 → 0.98-1.13 s, 2.04 → 1.51-1.55 s on 2 cores; BENCHMARKS §22)
         f.iparm[1] = 3
         # the improved two-level factorization for large systems that PARDISO orders itself (TWO_LEVEL_MIN_UNKNOWNS)
-        f.iparm[23] = 10 if ordering is None and self.n >= TWO_LEVEL_MIN_UNKNOWNS else 0
+        f.iparm[23] = 10 if ordering is None and self._two_level_size else 0
         if ordering is None:
             f.perm, f.iparm[4] = np.zeros(self.n, dtype=np.int32), 2
         else:
@@ -169,7 +175,7 @@ class Factor:
             # this factor is replaced: free MKL's copy of it before the new one is made, not after (beetle
             # upsampled to 311k, the cut mesh's fine level: factors of ~0.5 GB; peak RSS in process 2321 -> 1873 MB,
             # BENCHMARKS §18b)
-            ordering = None if self.n >= TWO_LEVEL_MIN_UNKNOWNS and REORDER_TWO_LEVEL else self.ordering
+            ordering = None if self._two_level_size and REORDER_TWO_LEVEL else self.ordering
             self.free()
             return Factor(U, self.backend, upper=True, ordering=ordering)
         return Factor(A, self.backend, upper=upper)
