@@ -604,6 +604,19 @@ def test_fine_hessian_analysed_during_the_coarse_levels_gives_the_same_polish(ca
     assert not used.symbolic  # numerically factorized by the fine polish: the analysis was used
     assert np.array_equal(runs[True].x, runs[False].x)
     assert runs[True].report() | {"seconds": 0} == runs[False].report() | {"seconds": 0}
+    # an analysis that fails on its thread only loses the head start
+    from heatparam import solvers
+
+    real = solvers.Factor
+
+    def failing(*a, numeric=True, **k):
+        if not numeric:
+            raise np.linalg.LinAlgError("PARDISO could not analyse the matrix (test)")
+        return real(*a, **k)
+
+    monkeypatch.setattr(newton, "Factor", failing)
+    again, ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
+    assert ml["used"] and np.array_equal(again.x, runs[False].x)
 
 
 def test_fine_level_stops_without_confirming_at_the_lightest_scaffold(cap_from_tutte, monkeypatch):

@@ -614,7 +614,10 @@ class Polish:
             if self._prepared is not None:  # the first Hessian: without a scaffold it has the prepared pattern
                 analysis, self._prepared = self._prepared.analysis, None
                 if analysis is not None and self.fac is None and sy.sc is None:
-                    self.fac = analysis.result()  # its first refactor() is a numerical factorization only
+                    try:
+                        self.fac = analysis.result()  # its first refactor() is a numerical factorization only
+                    except Exception:  # noqa: BLE001 - only a head start: the factorization is made here as ever
+                        self.fac = None
             self.hist.append(self.Es)
             direction = _safe_direction(sy, self.fac, self.backend)
             if isinstance(direction, str):
