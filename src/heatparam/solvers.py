@@ -96,7 +96,7 @@ class Factor:
             self._f = self._pardiso(pypardiso, ordering, numeric)
             if ordering is not None and self._f.iparm[17] > REORDER_FILL * ordering[1]:
                 self._f.free_memory(everything=True)  # the old ordering fills in too much here: a new one
-                self._f = self._pardiso(pypardiso, None)
+                self._f = self._pardiso(pypardiso, None, numeric)
             # the permutation and its fill, for refactor(); the fill of the METIS ordering it came from
             self.ordering = (self._f.perm, ordering[1] if ordering is not None and self._f.perm is ordering[0]
                              else int(self._f.iparm[17]))

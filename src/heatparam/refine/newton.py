@@ -573,9 +573,6 @@ class Polish:
     def _park(self) -> None:
         """While paused, free the factorization and the Hessian's pattern (a 200k-vertex halftunnel: 2.36 GB peak
         with them held while the seams stage flattened the cut mesh); :meth:`_unpark` rebuilds both exactly."""
-        if self.fac is not None and self.fac.symbolic:  # an analysis only (never used): nothing to rebuild
-            self.fac.free()
-            self.fac = None
         if self.fac is not None:
             kept = self.fac.rebuild_matrix()
             self._parked = (self.fac.backend, self._H_last if kept is None else kept, self.fac.ordering)
