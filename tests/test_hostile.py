@@ -415,6 +415,23 @@ def test_interrupt_swallowed_by_a_library_is_not_lost(tmp_path, monkeypatch):
     assert signal.getsignal(signal.SIGINT) is not interrupt._handler  # restored
 
 
+def test_interrupt_in_importlib_machinery_is_noted_then_raised():
+    """A SIGINT that lands in importlib's own code (a module lock's weakref callback, where a raised exception is
+    only printed, traceback and all, and the run goes on) is noted; the next check raises it. Elsewhere the handler
+    raises at once."""
+    import sys
+    from types import SimpleNamespace
+
+    in_importlib = SimpleNamespace(f_code=SimpleNamespace(co_filename="<frozen importlib._bootstrap>"))
+    with interrupt.handling():
+        interrupt._handler(signal.SIGINT, in_importlib)  # no exception here
+        assert interrupt.interrupted()
+        with pytest.raises(KeyboardInterrupt):
+            interrupt.check()
+    with interrupt.handling(), pytest.raises(KeyboardInterrupt):
+        interrupt._handler(signal.SIGINT, sys._getframe())
+
+
 def test_ctrl_c_at_any_moment_is_clean(tmp_path):
     """SIGINT from the interpreter's start to the end of the run: exit 130 (or, before Python has installed any
     handler, the signal's own exit), at most one line, never a traceback, no output written, old output kept."""

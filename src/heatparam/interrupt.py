@@ -23,8 +23,17 @@ _quiet = False  # set while the outputs are written and after: the handler then 
 def _handler(signum, frame):  # noqa: ARG001 - the signal module's signature
     global _interrupted
     _interrupted = True
-    if not _quiet:
+    if not _quiet and not _in_import_machinery(frame):
         raise KeyboardInterrupt
+
+
+def _in_import_machinery(frame) -> bool:
+    """Whether the signal arrived in importlib's own code (not a module being imported): there an exception from
+    a weakref callback of its module locks is only printed, "Exception ignored in: <function
+    _get_module_lock.<locals>.cb ...>" with a traceback, and the run goes on (1 in ~10 runs of
+    ``test_ctrl_c_at_any_moment_is_clean`` with a Ctrl-C ~60 ms in). The interrupt is only noted there: the next
+    :func:`check` raises it (after the imports, at the latest before any output is written)."""
+    return frame is not None and frame.f_code.co_filename.startswith("<frozen importlib")
 
 
 def interrupted() -> bool:
