@@ -222,3 +222,37 @@ def test_pardiso_analysis_alone_then_a_numerical_factorization():
         g.solve(b)
     with pytest.raises(ValueError, match="pardiso"):
         Factor(A, "scipy", numeric=False)
+
+
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="pypardiso not installed")
+def test_small_pardiso_systems_run_on_one_thread_and_the_setting_is_restored(monkeypatch):
+    A = _spd(seed=5)
+    n = A.shape[0]
+    b = np.random.default_rng(5).standard_normal(n)
+    f = Factor(A, "pardiso")
+    get = f._f.libmkl.MKL_Get_Max_Threads
+    before = get()
+    inside = []
+    with solvers.pardiso_threads(f._f, n):  # below PARDISO_SERIAL_BELOW
+        inside.append(get())
+    with solvers.pardiso_threads(f._f, solvers.PARDISO_SERIAL_BELOW):
+        inside.append(get())
+    assert inside == [1, before] and get() == before
+    # every PARDISO phase of a factor goes through it with the factor's size: analysis + factorization, the
+    # numerical refactorization, the solves
+    seen = []
+    real = solvers.pardiso_threads
+
+    def spy(solver, size):
+        seen.append(size)
+        return real(solver, size)
+
+    monkeypatch.setattr(solvers, "pardiso_threads", spy)
+    g = Factor(A, "pardiso")
+    x = g.solve(b)
+    assert g.refactor(A * 2.0) is g
+    assert np.allclose(g.solve(b), 0.5 * x)
+    assert seen == [n, n, n, n]
+    # one thread or two: the same solution to rounding
+    monkeypatch.setattr(solvers, "PARDISO_SERIAL_BELOW", 0)
+    assert np.allclose(Factor(A, "pardiso").solve(b), x, rtol=1e-12, atol=1e-12)

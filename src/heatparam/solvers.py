@@ -17,6 +17,7 @@ Backends (``backend=``):
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 
 import numpy as np
@@ -127,12 +128,13 @@ class Factor:
         else:
             f.perm, f.iparm[4] = ordering[0], 1
         try:
-            if numeric:
-                f.factorize(self._T)
-            else:  # phase 11, as ``factorize`` calls phase 12 (the matrix checked, no copy of it kept)
-                f._check_A(self._T)
-                f.set_phase(11)
-                f._call_pardiso(self._T, np.zeros((self.n, 1)))
+            with pardiso_threads(f, self.n):
+                if numeric:
+                    f.factorize(self._T)
+                else:  # phase 11, as ``factorize`` calls phase 12 (the matrix checked, no copy of it kept)
+                    f._check_A(self._T)
+                    f.set_phase(11)
+                    f._call_pardiso(self._T, np.zeros((self.n, 1)))
         except pypardiso.pardiso_wrapper.PyPardisoError as exc:  # e.g. -4, a zero pivot: NaN in the matrix
             f.free_memory(everything=True)
             raise np.linalg.LinAlgError(f"PARDISO could not factorize the matrix ({exc})") from None
@@ -213,7 +215,8 @@ class Factor:
                 raise RuntimeError("this PARDISO factorization was freed (Factor.free, or replaced by refactor)")
             if self.symbolic:
                 raise RuntimeError("this PARDISO object holds an analysis only: refactor() a matrix first")
-            x = self._f.solve(self._T, b).reshape(b.shape)  # same matrix object: pypardiso reuses the factor
+            with pardiso_threads(self._f, self.n):  # same matrix object: pypardiso reuses the factor
+                x = self._f.solve(self._T, b).reshape(b.shape)
             # a two-level factor's first solve is checked (a bad factor solves every right-hand side badly)
             if self._f.iparm[23] == 10 and getattr(self, "_checked", None) is not self._T:
                 if _solved(self._T, x, b, self._norm()):
@@ -226,7 +229,8 @@ class Factor:
 
                     self._f.free_memory(everything=True)
                     self._f = self._pardiso(pypardiso, self.ordering)
-                    x = self._f.solve(self._T, b).reshape(b.shape)
+                    with pardiso_threads(self._f, self.n):
+                        x = self._f.solve(self._T, b).reshape(b.shape)
         if out is None:
             return x
         if x is not out:
@@ -356,11 +360,53 @@ def _pardiso_numeric(solver, T: sp.csr_matrix) -> bool:
         solver._check_A(T)
         stored = solver._hash_csr_matrix(T) if T.nnz > solver.size_limit_storage else T
         solver.set_phase(22)
-        solver._call_pardiso(T, np.zeros((T.shape[0], 1)))
+        with pardiso_threads(solver, T.shape[0]):
+            solver._call_pardiso(T, np.zeros((T.shape[0], 1)))
     except AttributeError:
         return False
     solver.factorized_A = stored  # what solve() compares its matrix with
     return True
+
+
+#: PARDISO runs on one thread for SPD systems of fewer unknowns than this (the thread that calls it only:
+#: :func:`pardiso_threads`); larger ones on all of MKL's threads. Small factorizations gain little from a second
+#: thread and lose much when the machine is busy: cow's atlas (its joint polish factorizes 12k unknowns) took
+#: 0.345 s with PARDISO on 2 threads and 0.327 s on one, idle; 0.47 vs 0.36 s beside a process that kept one core
+#: busy, where xatlas (one thread) took 0.37-0.38 s either way (BENCHMARKS §26).
+PARDISO_SERIAL_BELOW = 20_000
+
+
+@contextlib.contextmanager
+def pardiso_threads(solver, n: int):
+    """Within this block MKL uses one thread on the calling thread when the system has fewer than
+    ``PARDISO_SERIAL_BELOW`` unknowns (``mkl_set_num_threads_local``; the setting before is restored after it);
+    otherwise, or where this MKL lacks the call, nothing changes. A factor keeps one thread count from its analysis
+    to its solves, as MKL's reproducibility (``MKL_CBWR``) asks: the count depends on n alone."""
+    fn = _local_threads(solver) if n < PARDISO_SERIAL_BELOW else None
+    if fn is None:
+        yield
+        return
+    before = fn(1)
+    try:
+        yield
+    finally:
+        fn(before)
+
+
+_LOCAL_THREADS: list = []
+
+
+def _local_threads(solver):
+    """MKL's ``MKL_Set_Num_Threads_Local`` (int → the previous local setting, 0: none) from the library pypardiso
+    loaded, or None."""
+    if not _LOCAL_THREADS:
+        import ctypes
+
+        fn = getattr(getattr(solver, "libmkl", None), "MKL_Set_Num_Threads_Local", None)
+        if fn is not None:
+            fn.restype, fn.argtypes = ctypes.c_int, [ctypes.c_int]
+        _LOCAL_THREADS.append(fn)
+    return _LOCAL_THREADS[0]
 
 
 def prepare_mkl() -> None:
