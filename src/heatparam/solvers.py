@@ -18,6 +18,7 @@ Backends (``backend=``):
 from __future__ import annotations
 
 import contextlib
+import functools
 import importlib.util
 
 import numpy as np
@@ -370,9 +371,9 @@ def _pardiso_numeric(solver, T: sp.csr_matrix) -> bool:
 
 #: PARDISO runs on one thread for SPD systems of fewer unknowns than this (the thread that calls it only:
 #: :func:`pardiso_threads`); larger ones on all of MKL's threads. Small factorizations gain little from a second
-#: thread and lose much when the machine is busy: cow's atlas (its joint polish factorizes 12k unknowns) took
-#: 0.345 s with PARDISO on 2 threads and 0.327 s on one, idle; 0.47 vs 0.36 s beside a process that kept one core
-#: busy, where xatlas (one thread) took 0.37-0.38 s either way (BENCHMARKS §26).
+#: thread and lose much when the machine is busy: cow's atlas (its joint polish factorizes 12k unknowns), median of
+#: 9, took 0.329 s with PARDISO on 2 threads and 0.320 s with this threshold, quiet; 0.508 vs 0.368 s beside a
+#: process that kept one core busy, where xatlas (one thread) took 0.337 and 0.376 s (BENCHMARKS §26).
 PARDISO_SERIAL_BELOW = 20_000
 
 
@@ -393,20 +394,20 @@ def pardiso_threads(solver, n: int):
         fn(before)
 
 
-_LOCAL_THREADS: list = []
-
-
 def _local_threads(solver):
     """MKL's ``MKL_Set_Num_Threads_Local`` (int → the previous local setting, 0: none) from the library pypardiso
     loaded, or None."""
-    if not _LOCAL_THREADS:
-        import ctypes
+    return _set_threads_local(getattr(solver, "libmkl", None))
 
-        fn = getattr(getattr(solver, "libmkl", None), "MKL_Set_Num_Threads_Local", None)
-        if fn is not None:
-            fn.restype, fn.argtypes = ctypes.c_int, [ctypes.c_int]
-        _LOCAL_THREADS.append(fn)
-    return _LOCAL_THREADS[0]
+
+@functools.cache
+def _set_threads_local(lib):
+    import ctypes
+
+    fn = getattr(lib, "MKL_Set_Num_Threads_Local", None)
+    if fn is not None:
+        fn.restype, fn.argtypes = ctypes.c_int, [ctypes.c_int]
+    return fn
 
 
 def prepare_mkl() -> None:
