@@ -379,8 +379,9 @@ def _edge_cells(A: np.ndarray, B: np.ndarray, h: float, origin: np.ndarray) -> n
             cell[:, 1 + other] = co
             parts.append(cell)
     rows = np.concatenate(parts)
-    lo = rows.min(axis=0)
-    span = rows.max(axis=0) - lo + 1
+    # the rows' bounds without a pass over them: edge ids 0..ne-1, every cell within its endpoints' cells
+    lo = np.r_[0, np.minimum(ca.min(axis=0), cb.min(axis=0))]
+    span = np.r_[ne, np.maximum(ca.max(axis=0), cb.max(axis=0))] - lo + 1
     if float(span[1]) * float(span[2]) * float(span[0]) < 2.0**62:  # one int64 key (cx, cy, edge): one sort
         key = unique_ints(((rows[:, 1] - lo[1]) * span[2] + rows[:, 2] - lo[2]) * span[0] + rows[:, 0] - lo[0])
         cell, e = np.divmod(key, span[0])

@@ -255,3 +255,74 @@ def test_a_failing_region_is_split_from_its_own_seeds_at_the_same_cone(monkeypat
     assert sum(growth) == seg.stats["grown"] == first[3] + sum(p for *_, p in splits)
     assert growth[0] == first[3] and len(growth) < 1 + len(splits)  # splits of one generation flattened together
     assert seg.checked.all()
+
+
+def _chart_mesh_by_scipy(topo, faces, glued, group):
+    """The reference for :func:`chart_mesh`: corners welded across glued half-edges (within a group), labelled by
+    ``scipy.sparse.csgraph.connected_components`` of the corner graph, the first corner naming each vertex."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    k, m = len(faces), len(topo.F)
+    rows = {(int(g), int(f)): i for i, (g, f) in enumerate(zip(group, faces, strict=True))}
+    r, c = [], []
+    for i, (g, f) in enumerate(zip(group, faces, strict=True)):
+        for j in range(3):
+            o = int(topo.opp[3 * f + j])
+            if o < 0 or not glued[3 * f + j] or (int(g), o // 3) not in rows:
+                continue
+            b, kk = rows[(int(g), o // 3)], o % 3
+            r += [3 * i + j, 3 * i + (j + 1) % 3]
+            c += [3 * b + (kk + 1) % 3, 3 * b + kk]
+    G = sp.coo_matrix((np.ones(len(r)), (r, c)), shape=(3 * k, 3 * k))
+    _, lab = connected_components(G, directed=False)
+    first = np.array([np.flatnonzero(lab == x)[0] for x in range(lab.max() + 1)])
+    assert m  # (a mesh)
+    return lab.reshape(k, 3), topo.F[faces].ravel()[first]
+
+
+def test_chart_mesh_welds_corners_as_connected_components_do():
+    """chart_mesh labels welded corners by pointer jumping along each vertex's fan: the labels and vertices of
+    scipy's connected components, on random face sets, glued half-edges (symmetric or not) and groups (disjoint,
+    and with faces in several groups), on meshes with poles of high valence (capped cylinder: 48 faces)."""
+    rng = np.random.default_rng(7)
+    for V, F in (datasets.capped_cylinder(n_theta=48, n_z=4), datasets.torus(n_major=16, n_minor=8),
+                 datasets.closed_cube(n=3)):
+        topo = Topology.build(V, F)
+        m = len(F)
+        for t in range(12):
+            faces = np.sort(rng.choice(m, size=int(rng.integers(1, m)), replace=False))
+            glued = rng.random(3 * m) < (1.0 if t % 4 == 0 else rng.random())
+            if t % 3 == 0:
+                glued |= glued[np.maximum(topo.opp, 0)] & (topo.opp >= 0)
+            group = np.zeros(len(faces), dtype=np.int64)
+            if t % 2:
+                more = np.sort(rng.choice(m, size=int(rng.integers(1, m)), replace=False))
+                if t % 4 == 1:
+                    more = np.setdiff1d(more, faces)  # disjoint groups (the table path)
+                faces = np.concatenate([faces, more])
+                group = np.r_[group, np.ones(len(more), dtype=np.int64)]
+            Vl, Fl, vert = chart_mesh(topo, faces, glued, group)
+            lab, ref_vert = _chart_mesh_by_scipy(topo, faces, glued, group)
+            assert np.array_equal(Fl, lab) and np.array_equal(vert, ref_vert)
+            assert np.array_equal(Vl, V[vert])
+
+
+def test_seeds_from_the_direct_csr_graph_match_the_coo_graph():
+    """_seeds builds the face graph's CSR arrays directly (its rows ascend); forced through COO (the path of a mesh
+    with a two-faced pocket, where COO sums the duplicate entry) it picks the same seeds on random face sets."""
+    import importlib
+
+    S = importlib.import_module("heatparam.atlas.segment")
+    V, F = datasets.torus(n_major=24, n_minor=10)
+    direct, coo = Topology.build(V, F), Topology.build(V, F)
+    assert not direct.double_neighbours()
+    coo._double = True
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        faces = np.sort(rng.choice(len(F), size=int(rng.integers(2, len(F))), replace=False))
+        k, seed = int(rng.integers(1, 6)), int(rng.integers(0, 3))
+        assert np.array_equal(S._seeds(direct, faces, k, seed), S._seeds(coo, faces, k, seed))
+    pillow = Topology.build(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2], [0, 2, 1]]))
+    assert pillow.double_neighbours()  # two faces, neighbours across all three edges
+    assert sorted(S._seeds(pillow, np.arange(2), 2, 0).tolist()) == [0, 1]
