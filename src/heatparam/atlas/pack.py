@@ -24,15 +24,15 @@ def min_area_rotation(P: np.ndarray) -> np.ndarray:
         return np.eye(2)
     E = np.roll(H, -1, axis=0) - H
     ang = np.arctan2(E[:, 1], E[:, 0])
+    t = np.unique(np.mod(ang, np.pi / 2))
+    c, s = np.cos(t), np.sin(t)
+    R = np.stack([np.column_stack([c, s]), np.column_stack([-s, c])], axis=1)  # (T,2,2): one rotation per angle
+    Q = H @ R.transpose(0, 2, 1)  # (T,h,2): the hull in each frame, all at once
+    ext = Q.max(axis=1) - Q.min(axis=1)
     best, R_best = np.inf, np.eye(2)
-    for t in np.unique(np.mod(ang, np.pi / 2)):
-        c, s = np.cos(t), np.sin(t)
-        R = np.array([[c, s], [-s, c]])
-        Q = H @ R.T
-        ext = Q.max(axis=0) - Q.min(axis=0)
-        area = ext[0] * ext[1]
+    for i, area in enumerate((ext[:, 0] * ext[:, 1]).tolist()):  # the first of the smallest, as one by one
         if area < best - 1e-12 * abs(best if np.isfinite(best) else 1):
-            best, R_best = area, R if ext[0] >= ext[1] else np.array([[0, 1], [-1, 0]]) @ R
+            best, R_best = area, R[i] if ext[i, 0] >= ext[i, 1] else np.array([[0, 1], [-1, 0]]) @ R[i]
     return R_best
 
 
