@@ -34,7 +34,7 @@ import numpy as np
 
 from heatparam.errors import MeshError
 from heatparam.mesh.planar import polygon_area, signed_areas
-from heatparam.mesh.topology import DEGENERATE_AREA_REL, boundary_edges, boundary_loops, unique_ints
+from heatparam.mesh.topology import DEGENERATE_AREA_REL, boundary_edges, boundary_loops, pairs_in_groups, unique_ints
 
 __all__ = [
     "PerFaceDistortion",
@@ -394,23 +394,6 @@ def _edge_cells(A: np.ndarray, B: np.ndarray, h: float, origin: np.ndarray) -> n
     return rows[keep]
 
 
-def _pairs_in_groups(edges: np.ndarray, starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """All (i, j) pairs of ``edges`` within each group ``edges[starts[g] : starts[g] + counts[g]]``."""
-    if len(counts) == 0:
-        return np.zeros((0, 2), np.int64)
-    # members of group g sit at starts[g] .. starts[g] + counts[g] - 1; member p pairs with p+1 .. end-1
-    local = np.arange(int(counts.sum()), dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts)
-    gpos = np.repeat(starts, counts) + local
-    end = np.repeat(starts + counts, counts)
-    npart = end - gpos - 1
-    tot = int(npart.sum())
-    if tot == 0:
-        return np.zeros((0, 2), np.int64)
-    first = np.repeat(gpos, npart)
-    second = first + 1 + (np.arange(tot) - np.repeat(np.cumsum(npart) - npart, npart))
-    return np.column_stack([edges[first], edges[second]])
-
-
 def _candidate_pairs(A: np.ndarray, B: np.ndarray, ids: np.ndarray, h: float, depth: int, out: list) -> None:
     """Append to ``out`` (k, 2) arrays of global edge ids whose segments share a grid cell of size ``h``."""
     Al, Bl = A[ids], B[ids]
@@ -427,10 +410,10 @@ def _candidate_pairs(A: np.ndarray, B: np.ndarray, ids: np.ndarray, h: float, de
         h_sub = h / _REFINE
         span = np.abs(Bl[sub] - Al[sub]).sum() / h_sub + 2 * len(sub)
         if span <= _MAX_ENTRIES:
-            out.append(_pairs_in_groups(edges, starts[~dense], counts[~dense]))
+            out.append(pairs_in_groups(edges, starts[~dense], counts[~dense]))
             _candidate_pairs(A, B, ids[sub], h_sub, depth + 1, out)
             return
-    out.append(_pairs_in_groups(edges, starts, counts))
+    out.append(pairs_in_groups(edges, starts, counts))
 
 
 def segment_crossings(P: np.ndarray, E: np.ndarray) -> int:

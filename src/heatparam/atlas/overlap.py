@@ -14,6 +14,8 @@ from fractions import Fraction
 
 import numpy as np
 
+from heatparam.mesh.topology import pairs_in_groups
+
 __all__ = ["overlapping_pairs", "count_overlaps", "uv_degenerate_faces"]
 
 _EPS = np.finfo(np.float64).eps
@@ -77,10 +79,7 @@ def _candidates(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     if not len(st):
         return np.zeros((0, 2), dtype=np.int64)
     # every pair of positions p < q within each cell's run of the sorted list, all cells at once
-    gpos = np.repeat(st, sz) + (np.arange(int(sz.sum())) - np.repeat(np.cumsum(sz) - sz, sz))
-    npart = np.repeat(st + sz, sz) - gpos - 1
-    first = np.repeat(gpos, npart)
-    second = first + 1 + (np.arange(int(npart.sum())) - np.repeat(np.cumsum(npart) - npart, npart))
+    first, second = pairs_in_groups(np.arange(len(tri)), st, sz).T
     a, b, cell = tri[first], tri[second], key[first]
     # each pair once: in the cell of its boxes' common lower-left corner (both boxes cover that cell), where the
     # boxes intersect at all

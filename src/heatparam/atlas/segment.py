@@ -93,8 +93,8 @@ class Topology:
         """Whether two faces are neighbours across two of their edges (a two-faced pocket), found once."""
         if not hasattr(self, "_double"):
             nb = np.where(self.opp >= 0, self.opp // 3, -1).reshape(-1, 3)
-            self._double = bool((((nb[:, 0] == nb[:, 1]) | (nb[:, 0] == nb[:, 2])) & (nb[:, 0] >= 0)).any()
-                                or ((nb[:, 1] == nb[:, 2]) & (nb[:, 1] >= 0)).any())
+            p, q = nb[:, [0, 0, 1]], nb[:, [1, 2, 2]]  # each face's three pairs of neighbours
+            self._double = bool(((p == q) & (p >= 0)).any())
         return self._double
 
     def lists(self) -> tuple[list, list, list, list, list]:

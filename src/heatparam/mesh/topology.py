@@ -214,3 +214,20 @@ def compact(referenced: np.ndarray) -> Compaction:
     remap = np.full(len(referenced), -1, dtype=np.int64)
     remap[keep] = np.arange(len(keep))
     return Compaction(keep, remap)
+
+
+def pairs_in_groups(edges: np.ndarray, starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """(p,2) all pairs (edges[p], edges[q]), p < q, within each group ``edges[starts[g] : starts[g] + counts[g]]``."""
+    if len(counts) == 0:
+        return np.zeros((0, 2), np.int64)
+    # members of group g sit at starts[g] .. starts[g] + counts[g] - 1; member p pairs with p+1 .. end-1
+    local = np.arange(int(counts.sum()), dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts)
+    gpos = np.repeat(starts, counts) + local
+    end = np.repeat(starts + counts, counts)
+    npart = end - gpos - 1
+    tot = int(npart.sum())
+    if tot == 0:
+        return np.zeros((0, 2), np.int64)
+    first = np.repeat(gpos, npart)
+    second = first + 1 + (np.arange(tot) - np.repeat(np.cumsum(npart) - npart, npart))
+    return np.column_stack([edges[first], edges[second]])
