@@ -1,4 +1,4 @@
-"""Atlases of closed, higher-genus and strongly curved meshes: heatparam.atlas vs xatlas vs libigl
+"""Atlases of closed, higher-genus and strongly curved meshes: heatparam's atlas stage vs xatlas vs libigl
 (cut_to_disk + Tutte + SLIM), in the same run, judged by the same independent checks: a markdown table.
 
 Usage: ``python bench/bench_atlas.py [--slim-iters N] [--repeat R] [name ...]`` (../shared/meshes files or the closed
@@ -27,10 +27,12 @@ import numpy as np
 from common import SHARED, machine
 
 from heatparam import datasets, formats
-from heatparam.atlas import atlas, seam_length
+from heatparam.atlas.chart_seams import seam_length
 from heatparam.atlas.overlap import count_overlaps, uv_degenerate_faces
 from heatparam.mesh import cut_open
 from heatparam.metrics import distortion
+from heatparam.pipeline import parameterize_disk
+from heatparam.pipeline.atlas_stage import atlas
 
 CLOSED = ["cow.off", "stanford-bunny.obj", "3holes.off", "stanford-dragon-res3.ply"]
 OPEN = ["camelhead.off", "beetle.off", "halftunnel.off"]
@@ -58,7 +60,7 @@ def judge(V, F, uv, Fuv, charts, seconds):
 
 def run_ours(V, F, name):
     t = time.perf_counter()
-    res = atlas(V, F, max_distortion=1.05 if name in OPEN else None)
+    res = atlas(V, F, parameterize_disk, max_distortion=1.05 if name in OPEN else None)
     s = time.perf_counter() - t
     return judge(V, F, res.uv, res.Fuv, res.report["totals"]["charts"], s)
 

@@ -3,16 +3,19 @@ atlas of such input, of several components, and of a nearly closed surface."""
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 import pytest
 
 from heatparam import datasets
-from heatparam.atlas import atlas
 from heatparam.atlas.overlap import count_overlaps, uv_degenerate_faces
-from heatparam.atlas.repair import repair
+from heatparam.atlas.repair import repair, union
 from heatparam.errors import MeshError
 from heatparam.metrics import distortion
-from heatparam.pipeline import parameterize_disk
+from heatparam.pipeline import atlas_stage, parameterize_disk
+
+atlas = partial(atlas_stage.atlas, flatten_disk=parameterize_disk)
 
 
 def scan_like(seed: int = 0) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -106,3 +109,13 @@ def test_scan_like_atlas_obj_round_trip(tmp_path):
     np.testing.assert_array_equal(V2, V)  # loose points and split vertices kept: v unchanged
     np.testing.assert_array_equal(F2, F)
     np.testing.assert_array_equal(UV2[FUV2], res.uv[res.Fuv])
+
+
+def test_union_of_components_keeps_every_face_and_its_owner():
+    """``union``: the tiny components as one part, each face's corners unchanged and its component id kept."""
+    V, F, _ = scan_like()
+    rep = repair(V, F)
+    ids = [1, 2, 3]
+    part, owner = union([rep.components[i] for i in ids], ids)
+    np.testing.assert_array_equal(part.vertex[part.F], F[part.faces])
+    np.testing.assert_array_equal(owner, np.repeat(ids, [len(rep.components[i].F) for i in ids]))

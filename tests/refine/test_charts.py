@@ -60,7 +60,9 @@ def test_excess_rule_stops_early_at_nearly_the_same_energy(monkeypatch, predict)
     gain, the last one times its ratio to the one before, would be below that): on a torus's charts it takes fewer
     iterations than the polish run to its ordinary convergence, to an energy within 1e-3 of the start's excess of
     that one's; the prediction stops no later than the rule alone."""
-    from heatparam.atlas.segment import Topology, flatten_charts, segment
+    from heatparam.atlas.chart_topology import Topology
+    from heatparam.atlas.flatten import flatten_charts
+    from heatparam.atlas.segment import segment
     from heatparam.refine import newton
 
     V, F = datasets.torus()

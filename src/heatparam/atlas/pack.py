@@ -53,6 +53,17 @@ def pack_charts(uvs: list[np.ndarray], Fs: list[np.ndarray], mode: str = "scale"
     (placed layouts, info dict with ``scale`` (texture scale factor; 1 in scale mode), ``width``, ``height``,
     ``efficiency`` = summed chart UV area / area of the atlas rectangle ([0,1]² in texture mode)).
     """
+    rot, sizes, areas = _upright(uvs, Fs)
+    if mode == "scale":
+        return _pack_scale(rot, sizes, areas, gap)
+    if mode != "texture":
+        raise ValueError(f"pack must be 'scale' or 'texture', got {mode!r}")
+    return _pack_texture(rot, sizes, areas, float(padding) / float(resolution))
+
+
+def _upright(uvs: list[np.ndarray], Fs: list[np.ndarray]) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+    """Each chart turned to its minimum-area bounding rectangle, moved to the origin: (the layouts, (k,2) their
+    boxes' sizes, (k,) their UV areas)."""
     rot = []
     sizes = np.zeros((len(uvs), 2))
     areas = np.zeros(len(uvs))
@@ -65,43 +76,50 @@ def pack_charts(uvs: list[np.ndarray], Fs: list[np.ndarray], mode: str = "scale"
         T = Q[Fs[i]]
         e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
         areas[i] = 0.5 * float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum())
-    if mode == "scale":
-        g = gap if gap is not None else 0.02 * float(np.sqrt(np.mean(sizes[:, 0] * sizes[:, 1])) + 1e-300)
-        total = float((sizes + g).prod(axis=1).sum())
-        best = None
-        for f in (0.8, 0.9, 1.0, 1.1, 1.25, 1.4, 1.6, 2.0):  # shelf widths: keep the smallest rectangle
-            width = max(float(np.sqrt(total) * f), float(sizes[:, 0].max()))
-            cand = shelf_pack(sizes, width, g)
-            if best is None or cand[1] * cand[2] < best[1] * best[2]:
-                best = cand
-        pos, w, h = best
-        out = [Q + pos[i] for i, Q in enumerate(rot)]
-        return out, {"mode": mode, "scale": 1.0, "width": w, "height": h, "gap": g,
-                     "efficiency": float(areas.sum() / max(w * h, 1e-300))}
-    if mode != "texture":
-        raise ValueError(f"pack must be 'scale' or 'texture', got {mode!r}")
-    g = float(padding) / float(resolution)
+    return rot, sizes, areas
 
-    def fits(s: float) -> tuple[bool, np.ndarray]:
-        inner = 1.0 - g
-        if (sizes * s).max() > inner:
-            return False, None
-        pos, w, h = shelf_pack(sizes * s, inner, g)
-        return h <= inner, pos
 
+def _pack_scale(rot: list[np.ndarray], sizes: np.ndarray, areas: np.ndarray, gap: float | None
+                ) -> tuple[list[np.ndarray], dict]:
+    """True scale: the shelf width (of a few tried) that gives the smallest rectangle."""
+    g = gap if gap is not None else 0.02 * float(np.sqrt(np.mean(sizes[:, 0] * sizes[:, 1])) + 1e-300)
+    total = float((sizes + g).prod(axis=1).sum())
+    best = None
+    for f in (0.8, 0.9, 1.0, 1.1, 1.25, 1.4, 1.6, 2.0):  # shelf widths: keep the smallest rectangle
+        width = max(float(np.sqrt(total) * f), float(sizes[:, 0].max()))
+        cand = shelf_pack(sizes, width, g)
+        if best is None or cand[1] * cand[2] < best[1] * best[2]:
+            best = cand
+    pos, w, h = best
+    out = [Q + pos[i] for i, Q in enumerate(rot)]
+    return out, {"mode": "scale", "scale": 1.0, "width": w, "height": h, "gap": g,
+                 "efficiency": float(areas.sum() / max(w * h, 1e-300))}
+
+
+def _pack_texture(rot: list[np.ndarray], sizes: np.ndarray, areas: np.ndarray, g: float
+                  ) -> tuple[list[np.ndarray], dict]:
+    """One common scale, the largest that fits in [0,1]² with gutter ``g`` (bisection)."""
     hi = (1.0 - g) / max(float(sizes.max()), 1e-300)
     lo = 0.0
-    if fits(hi)[0]:
+    if _texture_fit(sizes, hi, g)[0]:
         lo = hi
     else:
         for _ in range(40):
             mid = 0.5 * (lo + hi)
-            if fits(mid)[0]:
+            if _texture_fit(sizes, mid, g)[0]:
                 lo = mid
             else:
                 hi = mid
-    ok, pos = fits(lo)
+    _, pos = _texture_fit(sizes, lo, g)
     out = [Q * lo + pos[i] + 0.5 * g for i, Q in enumerate(rot)]
-    return out, {"mode": mode, "scale": lo, "width": 1.0, "height": 1.0, "gutter": g,
+    return out, {"mode": "texture", "scale": lo, "width": 1.0, "height": 1.0, "gutter": g,
                  "efficiency": float(areas.sum() * lo * lo)}
 
+
+def _texture_fit(sizes: np.ndarray, s: float, g: float) -> tuple[bool, np.ndarray | None]:
+    """Whether the charts scaled by ``s`` fit in [0,1]² with gutter ``g``, and the boxes' shelf positions."""
+    inner = 1.0 - g
+    if (sizes * s).max() > inner:
+        return False, None
+    pos, _, h = shelf_pack(sizes * s, inner, g)
+    return h <= inner, pos

@@ -20,7 +20,7 @@ from heatparam.errors import MeshError
 from heatparam.mesh import validate_mesh
 from heatparam.mesh.topology import unique_inverse
 
-__all__ = ["Component", "Repair", "repair", "half_edge_opposites"]
+__all__ = ["Component", "Repair", "half_edge_opposites", "repair", "union"]
 
 
 @dataclass
@@ -107,7 +107,30 @@ def repair(V: np.ndarray, F: np.ndarray) -> Repair:
             f"face indices out of range (found {int(F.min())}..{int(F.max())} for {n} vertices) — the file is corrupt"
         )
     opp = half_edge_opposites(F)
-    # corner c = 3 f + j; glue corners of the same vertex across every welded half-edge pair
+    cls, cls_vertex, fcomp, ncomp = _weld(F, opp)
+    per_vertex = np.bincount(cls_vertex, minlength=n)
+    referenced = np.zeros(n, dtype=bool)
+    referenced[F.ravel()] = True
+    comps = []
+    sizes = np.bincount(fcomp, minlength=ncomp)
+    for ci in np.argsort(-sizes, kind="stable"):
+        faces = np.flatnonzero(fcomp == ci)
+        verts, Fl = np.unique(cls.reshape(m, 3)[faces], return_inverse=True)
+        Fl = Fl.reshape(-1, 3).astype(np.int64)
+        vin = cls_vertex[verts]
+        Vc = V[vin]
+        validate_mesh(Vc, Fl, flatten=False)
+        comps.append(Component(V=Vc, F=Fl, faces=faces, vertex=vin))
+    split = int((per_vertex > 1).sum())
+    return Repair(components=comps, split_vertices=split, cut_edges=_unwelded_edges(F, opp, n),
+                  loose_points=np.flatnonzero(~referenced))
+
+
+def _weld(F: np.ndarray, opp: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Corners c = 3 f + j of the same vertex glued across every welded half-edge pair: (the new vertex of each
+    corner (3m,), numbered by first corner; the input vertex of each new vertex; the component of each face
+    (edge-connected through welded edges); the number of components)."""
+    m = len(F)
     h = np.flatnonzero(opp >= 0)
     o = opp[h]
     f, j = h // 3, h % 3
@@ -116,36 +139,28 @@ def repair(V: np.ndarray, F: np.ndarray) -> Repair:
     c = np.concatenate([3 * g + (k + 1) % 3, 3 * g + k])
     G = sp.coo_matrix((np.ones(len(r)), (r, c)), shape=(3 * m, 3 * m))
     _, label = connected_components(G, directed=False)
-    # face components through welded edges
     Gf = sp.coo_matrix((np.ones(len(h)), (f, g)), shape=(m, m))
     ncomp, fcomp = connected_components(Gf, directed=False)
-    corner_vertex = F.ravel()
-    # new vertex ids: one per corner class (ordered by first corner)
     uniq, first, inv = unique_inverse(label)
     new_id = np.empty(len(uniq), dtype=np.int64)
     new_id[np.argsort(first, kind="stable")] = np.arange(len(uniq))
     cls = new_id[inv]
     cls_vertex = np.empty(len(uniq), dtype=np.int64)
-    cls_vertex[cls] = corner_vertex
-    per_vertex = np.bincount(cls_vertex, minlength=n)
-    split = int((per_vertex > 1).sum())
-    # input edges used by >= 2 faces but not welded
+    cls_vertex[cls] = F.ravel()
+    return cls, cls_vertex, fcomp, ncomp
+
+
+def _unwelded_edges(F: np.ndarray, opp: np.ndarray, n: int) -> int:
+    """Input edges used by two or more faces but not welded (non-manifold, or inconsistently oriented)."""
     a, b = F.ravel(), F[:, [1, 2, 0]].ravel()
-    key = np.minimum(a, b) * n + np.maximum(a, b)
-    _, _, inv = unique_inverse(key)  # edges of 2+ half-edges none of which is welded
-    cut_edges = int(((np.bincount(inv) >= 2) & (np.bincount(inv, weights=opp >= 0) == 0)).sum())
-    referenced = np.zeros(n, dtype=bool)
-    referenced[F.ravel()] = True
-    comps = []
-    sizes = np.bincount(fcomp, minlength=ncomp)
-    for ci in np.argsort(-sizes, kind="stable"):
-        faces = np.flatnonzero(fcomp == ci)
-        cc = cls.reshape(m, 3)[faces]
-        verts, Fl = np.unique(cc, return_inverse=True)
-        Fl = Fl.reshape(-1, 3).astype(np.int64)
-        vin = cls_vertex[verts]
-        Vc = V[vin]
-        validate_mesh(Vc, Fl, flatten=False)
-        comps.append(Component(V=Vc, F=Fl, faces=faces, vertex=vin))
-    return Repair(components=comps, split_vertices=split, cut_edges=cut_edges,
-                  loose_points=np.flatnonzero(~referenced))
+    _, _, inv = unique_inverse(np.minimum(a, b) * n + np.maximum(a, b))
+    return int(((np.bincount(inv) >= 2) & (np.bincount(inv, weights=opp >= 0) == 0)).sum())
+
+
+def union(parts: list[Component], ids: list[int]) -> tuple[Component, np.ndarray]:
+    """Several components as one (their disjoint union) and the component id (from ``ids``) of each of its faces."""
+    offs = np.cumsum([0] + [len(c.V) for c in parts])
+    F = np.vstack([c.F + o for c, o in zip(parts, offs[:-1], strict=True)])
+    comp = Component(np.vstack([c.V for c in parts]), F, np.concatenate([c.faces for c in parts]),
+                     np.concatenate([c.vertex for c in parts]))
+    return comp, np.repeat(np.asarray(ids, dtype=np.int64), [len(c.F) for c in parts])

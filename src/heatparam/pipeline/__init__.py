@@ -25,6 +25,7 @@ from heatparam.errors import HeatparamError, TopologyError
 from heatparam.heat import check_time_step
 from heatparam.memory import require
 from heatparam.options import Options, make_options
+from heatparam.pipeline.atlas_stage import atlas_result
 from heatparam.pipeline.heat_stage import FillSurface, decide_fill, mds_map
 from heatparam.pipeline.report import Flat, Result, build_report, map_metrics, method_report
 from heatparam.pipeline.seams import seam_pause, seams_stage
@@ -117,12 +118,10 @@ def _disk(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress) -> Result
 
 
 def _atlas(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress, why: str) -> Result:
-    """The atlas stage (``heatparam.atlas``): repair, segment into disk charts, flatten each with these stages,
-    pack; the map as a :class:`Result` with ``chart`` set."""
-    from heatparam.atlas import atlas_result
-
+    """The atlas stage (``atlas_stage``): repair, segment into disk charts, flatten each with these stages
+    (:func:`parameterize_disk`), pack; the map as a :class:`Result` with ``chart`` set."""
     with prog.stage("atlas"):
-        return atlas_result(V, F, opts, why, prog)
+        return atlas_result(V, F, opts, why=why, flatten_disk=parameterize_disk, prog=prog)
 
 
 def _to_model(flat: Flat, frame) -> Flat:

@@ -1,0 +1,87 @@
+"""The charts of a segmentation polished together (``refine.charts``), each from its bijective layout.
+
+The layout the segmentation checked (``Segmentation.corner_uv``) is the start; a chart without one starts from its
+quick flattening (LSCM) where that is bijective. Starting from the checked layout alone (not the less distorted of
+it and a fresh LSCM) gave the same Newton iterations and iso means within 2e-4 without the LSCM (BENCHMARKS §23a).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from heatparam.atlas.chart_topology import Topology
+from heatparam.atlas.flatten import Flattenings, chart_iso, flatten_charts
+from heatparam.atlas.segment import Segmentation
+from heatparam.refine import RefineParams
+from heatparam.refine.charts import refine_charts
+
+__all__ = ["PolishedChart", "polish_charts"]
+
+#: the polish's report keys kept in the atlas report
+REPORT_KEYS = ("charts", "iterations", "converged", "stop", "energy_start", "energy_end", "seconds", "used", "reason")
+
+
+@dataclass
+class PolishedChart:
+    """A chart the joint polish finished: its faces (component rows), Fl (k,3) local triangles, vert (n_l,)
+    component vertex of each row, uv (n_l,2), info (its report entry)."""
+
+    faces: np.ndarray
+    Fl: np.ndarray
+    vert: np.ndarray
+    uv: np.ndarray
+    info: dict
+
+
+def polish_charts(topo: Topology, groups: list[np.ndarray], seg: Segmentation, *, limit: float | None,
+                  params: RefineParams | None) -> tuple[list[PolishedChart], list[int], dict]:
+    """The charts ``groups`` (face arrays of ``seg``) polished together; ``params`` None: not polished (their
+    layouts kept). A chart is done when its polished layout is flip-free and within ``limit`` (None: any).
+
+    Returns (the charts done, the indices of the others — no bijective layout, or failed —, the polish's report).
+    """
+    fl, ok = _starts(topo, groups, seg)
+    good = np.flatnonzero(ok)
+    if not len(good):
+        return [], list(range(len(groups))), {"charts": 0}
+    new = np.full(len(groups), -1, dtype=np.int64)
+    new[good] = np.arange(len(good))
+    fgroup = np.repeat(np.arange(len(groups)), np.diff(fl.face_start))
+    rows = np.flatnonzero(new[fl.vgroup] >= 0)
+    loc = np.full(len(fl.Vl), -1, dtype=np.int64)
+    loc[rows] = np.arange(len(rows))
+    Fs = loc[fl.Fl[new[fgroup] >= 0]]
+    vg = new[fl.vgroup[rows]]
+    x = fl.uv[rows]
+    if params is None:
+        rep = {"charts": len(good), "used": False, "reason": "refine none: the LSCM layouts are kept"}
+    else:
+        x, rep = refine_charts(fl.Vl[rows], Fs, x, vg, len(good), max_iters=params.max_iters, tol=params.tol,
+                               backend=params.solver)
+    iso, flips = chart_iso(fl.Vl[rows], Fs, x, vg[Fs[:, 0]], len(good))
+    crossing = rep.get("boundary_crossings", 0) > 0  # the scaffold rules it out; checked, not assumed
+    polished = fl.uv.copy()
+    polished[rows] = x
+    done, rest = [], [i for i in range(len(groups)) if new[i] < 0]
+    for j, i in enumerate(good):
+        if crossing or flips[j] or (limit is not None and iso[j] > limit):
+            rest.append(int(i))
+            continue
+        _, Fl, vert, uv = fl.chart(i, polished)
+        info = {"iso_mean": float(iso[j]), "flips": 0, "bijective": True, "boundary_crossings": 0,
+                "method": "lscm + joint polish"}
+        done.append(PolishedChart(groups[i], Fl, vert, uv, info))
+    return done, sorted(rest), {k: rep[k] for k in REPORT_KEYS if k in rep}
+
+
+def _starts(topo: Topology, groups: list[np.ndarray], seg: Segmentation) -> tuple[Flattenings, np.ndarray]:
+    """The charts' meshes with their start layouts (the checked one, else LSCM) and which have a bijective one."""
+    fl = flatten_charts(topo, groups, seg.glued, want=~seg.checked)
+    ok = fl.ok(np.inf)
+    for i in np.flatnonzero(seg.checked & fl.disk):  # never a chart with a hole
+        rows = fl.Fl[fl.face_start[i]:fl.face_start[i + 1]].ravel()
+        fl.uv[rows] = seg.corner_uv[(3 * groups[i][:, None] + np.arange(3)).ravel()]
+        ok[i] = True
+    return fl, ok

@@ -1,0 +1,346 @@
+"""The atlas stage: any mesh as disk charts, each flattened by the pipeline's stages, packed without overlap.
+
+``pipeline.parameterize`` comes here for what a single flattening refuses (closed surfaces, handles, nearly closed
+scans, several components, non-manifold vertices and edges) and when a distortion bound is asked for::
+
+    repair (lossless): clean components                     atlas.repair
+    each component
+      whole, when it is one disk mapped bijectively         flatten_disk (the default bound only)
+      else segmented: grow, check, split, merge             atlas.segment
+        the charts polished together                        atlas.polish (refine.charts)
+        a chart that fails: the pipeline, else its halves,  flatten_disk, atlas.grow.halves,
+          else its LSCM layout, else one chart per face     atlas.flatten.quick_flatten
+    the tiny components together, as one part               atlas.repair.union
+    pack                                                    atlas.pack
+    the map and its report                                  AtlasResult; Result (report.envelope)
+
+The input's vertices and faces are unchanged, row for row; face f's corners map to ``uv[Fuv[f]]``. Disks are
+flattened by the function the stage is given (``flatten_disk``: ``pipeline.parameterize_disk``), so that this
+module imports nothing that imports it.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from heatparam import metrics
+from heatparam.atlas.chart_seams import chart_seam_lengths, cut_half_edges, seam_length
+from heatparam.atlas.chart_topology import Topology, chart_mesh
+from heatparam.atlas.flatten import quick_flatten
+from heatparam.atlas.grow import halves
+from heatparam.atlas.overlap import count_overlaps, uv_degenerate_faces
+from heatparam.atlas.pack import pack_charts
+from heatparam.atlas.polish import polish_charts
+from heatparam.atlas.repair import Component, Repair, half_edge_opposites, repair, union
+from heatparam.atlas.segment import proxy_bound, segment
+from heatparam.errors import HeatparamError
+from heatparam.mesh import validate_mesh
+from heatparam.options import Options, make_options
+from heatparam.pipeline.report import Result, envelope
+from heatparam.refine import RefineParams
+
+__all__ = ["ATLAS_FIELDS", "AtlasResult", "Chart", "DEFAULT_MAX_DISTORTION", "DiskFlattener", "TINY_COMPONENT_FACES",
+           "atlas", "atlas_result"]
+
+#: isometric distortion bound per chart (area-weighted mean of max(s1, 1/s2)); measured in BENCHMARKS.md
+DEFAULT_MAX_DISTORTION = 1.05
+#: components with fewer faces are reported as tiny (they still get charts)
+TINY_COMPONENT_FACES = 20
+#: the Options fields that are the atlas's own (not passed to the per-chart pipeline)
+ATLAS_FIELDS = ("max_distortion", "max_charts", "pack", "padding", "resolution", "progress")
+
+#: one disk (V, F) flattened by the pipeline's stages with the options given: ``pipeline.parameterize_disk``
+DiskFlattener = Callable[[np.ndarray, np.ndarray, Options], Result]
+
+
+@dataclass
+class AtlasResult:
+    """uv (k,2) float64; Fuv (m,3) int64 rows of uv per face corner (F row for row); uv_vertex (k,) int64 input
+    vertex of each uv row; chart (m,) int64 chart of each face; report dict (per chart and totals)."""
+
+    uv: np.ndarray
+    Fuv: np.ndarray
+    uv_vertex: np.ndarray
+    chart: np.ndarray
+    report: dict = field(default_factory=dict)
+
+
+@dataclass
+class Chart:
+    """One chart of the atlas: faces (m_i,) input face rows, Fl (m_i,3) its triangles in local rows, vert (n_i,)
+    input vertex of each local row, uv (n_i,2) its layout, component (input component id), info (report entry)."""
+
+    faces: np.ndarray
+    Fl: np.ndarray
+    vert: np.ndarray
+    uv: np.ndarray
+    component: int
+    info: dict
+
+
+def atlas(V: np.ndarray, F: np.ndarray, flatten_disk: DiskFlattener, *, max_distortion: float | None = None,
+          max_charts: int | None = None, pack: str = "scale", padding: float = 4.0, resolution: int = 1024,
+          seed: int = 0, **pipeline_options) -> AtlasResult:
+    """A bijective, near-isometric atlas of any triangle mesh (module docstring).
+
+    Parameters
+    ----------
+    V : (n,3) float64. F : (m,3) int64.
+    flatten_disk : flattens one disk chart: ``heatparam.pipeline.parameterize_disk``.
+    max_distortion : per-chart bound on the isometric distortion (area-weighted mean of max(s1, 1/s2)).
+        None (default): charts are segmented and merged to ``DEFAULT_MAX_DISTORTION`` (1.05), and an open part
+        that ``parameterize`` accepts (a disk, possibly with holes, not nearly closed) stays one piece when its
+        map is bijective, whatever its distortion. A number: every part is segmented to that bound.
+    max_charts : a cap on the charts of each component: when the bound leaves more, merging goes on past the
+        bound (each merged chart still bijective) down to this count where bijective merges exist; a warning
+        says when the atlas still has more.
+    pack : ``scale`` (true scale, model units) or ``texture`` (UVs in [0,1]², one common scale).
+    padding, resolution : gutter in pixels of a ``resolution``² texture (``texture``).
+    seed : seeds the farthest-point seeds and the pipeline.
+    pipeline_options : :class:`~heatparam.options.Options` fields for every chart's flattening.
+    """
+    t0 = time.perf_counter()
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    if pack not in ("scale", "texture"):
+        raise HeatparamError(f"pack must be 'scale' or 'texture', got {pack!r}")
+    if max_distortion is not None and not max_distortion > 1.0:
+        raise HeatparamError(f"max distortion must be > 1 (1 = isometry), got {max_distortion}")
+    bound = DEFAULT_MAX_DISTORTION if max_distortion is None else float(max_distortion)
+    opts = {"seed": seed, **pipeline_options}
+    if opts.get("mds_start", "auto") == "auto":  # charts are small and clean: the heat stage never won a start on
+        opts["mds_start"] = "never"  # them (the same atlases, 26-36% faster; BENCHMARKS §10)
+    rep = repair(V, F)
+    maker = _ChartMaker(flatten_disk, make_options(None, **opts), bound, whole_first=max_distortion is None,
+                        max_charts=max_charts, seed=seed)
+    components, tiny = maker.components(rep.components)
+    t_flat = time.perf_counter() - t0
+    placed, pinfo = pack_charts([c.uv for c in maker.charts], [c.Fl for c in maker.charts], pack, padding,
+                                resolution)
+    res = _assemble(maker.charts, placed, len(F))
+    res.report = {"parameters": {"max_distortion": max_distortion, "bound_used": bound, "max_charts": max_charts,
+                                 "pack": pinfo["mode"]},
+                  **_report(V, F, res, charts=maker.charts, rep=rep, components=components, tiny=tiny, pinfo=pinfo),
+                  "warnings": _warnings(len(maker.charts), max_charts, rep),
+                  "seconds": {"charts": t_flat, "total": time.perf_counter() - t0}}
+    return res
+
+
+def atlas_result(V: np.ndarray, F: np.ndarray, opts: Options, *, why: str, flatten_disk: DiskFlattener,
+                 prog=None) -> Result:
+    """:func:`atlas` of (V, F) with the ``Options`` ``opts`` (their atlas fields and the pipeline's for each chart),
+    as a ``pipeline.Result``: ``uv``, ``Fuv``, ``uv_vertex``, ``chart`` and a report with the same top-level keys as
+    a single flattening's (``metrics`` over the whole atlas, ``method.atlas`` per chart and totals); ``why``: why
+    the mesh became an atlas."""
+    o = asdict(opts)
+    pipeline_options = {k: v for k, v in o.items() if k not in ATLAS_FIELDS and k != "seed"}
+    res = atlas(V, F, flatten_disk, max_distortion=opts.max_distortion or None, max_charts=opts.max_charts or None,
+                pack=opts.pack, padding=opts.padding, resolution=opts.resolution, seed=opts.seed,
+                **pipeline_options)
+    summary = metrics.summary(V, F, res.uv, res.Fuv)
+    summary["stress_rel_rms"] = None
+    t = res.report["totals"]
+    summary.update(charts=t["charts"], overlapping_triangle_pairs=t["overlapping_triangle_pairs"],
+                   uv_degenerate_faces=t["uv_degenerate_faces"], seam_length=t["seam_length"])
+    warnings = [f"an atlas of {t['charts']} chart(s) ({why}); the OBJ's vt rows split along the seams",
+                *res.report.get("warnings", [])]
+    referenced = np.zeros(len(V), dtype=bool)
+    referenced[F.ravel()] = True
+    method = {"atlas": res.report, "why": why, "seams": {"mode": opts.seams, "used": True,
+                                                         "reason": "charts of an atlas"}}
+    mesh_facts = {"vertices": len(V), "faces": len(F), "unreferenced_vertices": int((~referenced).sum()),
+                  "components": len(res.report["components"]), "repair": res.report["repair"]}
+    report = envelope(o, method, mesh_facts, summary, {"atlas": round(float(res.report["seconds"]["total"]), 4)},
+                      warnings)
+    if prog is not None:
+        for w in report["warnings"]:
+            prog.warn(w)
+    return Result(res.uv, report, None, res.Fuv, res.uv_vertex, res.chart)
+
+
+class _ChartMaker:
+    """The charts of a mesh's components (``charts``, in order), each part flattened whole or segmented.
+
+    flatten_disk : the pipeline on one disk. opts : the Options of every chart's flattening. bound : the charts'
+    distortion bound. whole_first : try each component whole first (no bound asked for). max_charts : the cap on
+    each component's charts. seed : the segmentation's seeds."""
+
+    def __init__(self, flatten_disk: DiskFlattener, opts: Options, bound: float, *, whole_first: bool,
+                 max_charts: int | None, seed: int):
+        self.flatten_disk, self.opts, self.bound = flatten_disk, opts, bound
+        self.whole_first, self.max_charts, self.seed = whole_first, max_charts, seed
+        self.polish = None if opts.refine == "none" else RefineParams.from_options(opts)
+        self.charts: list[Chart] = []
+
+    def components(self, comps: list[Component]) -> tuple[list[dict], list[int]]:
+        """Every component charted: (the report entry of each, the tiny components)."""
+        reports: list[dict] = [{} for _ in comps]
+        tiny = [ci for ci, c in enumerate(comps) if len(c.F) < TINY_COMPONENT_FACES]
+        for ci, comp in enumerate(comps):
+            if len(tiny) > 1 and ci in tiny:
+                continue  # below, all together
+            whole = self.whole(comp, ci) if self.whole_first else None
+            if whole is not None:
+                self.charts.append(whole)
+                reports[ci] = {"faces": int(len(comp.F)), "charts": 1, "segmented": False}
+                continue
+            made, stats = self.segmented(comp, ci, self.max_charts)
+            reports[ci] = {"faces": int(len(comp.F)), "charts": made, "segmented": True, **stats}
+        if len(tiny) > 1:
+            self._tiny_together(comps, tiny, reports)
+        return reports, tiny
+
+    def _tiny_together(self, comps: list[Component], tiny: list[int], reports: list[dict]) -> None:
+        """The fins and crumbs of a scan segmented and polished as one part (one solve, not one each)."""
+        part, owner = union([comps[ci] for ci in tiny], tiny)
+        start = len(self.charts)
+        _, stats = self.segmented(part, owner, None)
+        made = np.bincount([c.component for c in self.charts[start:]], minlength=len(comps))
+        for ci in tiny:
+            reports[ci] = {"faces": int(len(comps[ci].F)), "charts": int(made[ci]), "segmented": True,
+                           "with_the_tiny_components": True}
+        reports[tiny[0]]["tiny_components_together"] = {"components": len(tiny), **stats}
+
+    def whole(self, comp: Component, ci: int) -> Chart | None:
+        """A component that is a single disk (not nearly closed), flattened whole by the pipeline, as one chart when
+        its map is bijective; None otherwise (it is segmented)."""
+        try:
+            validate_mesh(comp.V, comp.F, flatten=True)
+            res = self.flatten_disk(comp.V, comp.F, self.opts)
+        except HeatparamError:
+            return None
+        met = res.report["metrics"]
+        if not (met["bijective"] and not met["flips"]):
+            return None
+        Fuv = res.Fuv if res.Fuv is not None else comp.F
+        return Chart(comp.faces, np.asarray(Fuv, dtype=np.int64), comp.vertex[res.uv_vertex], res.uv, ci,
+                     {"iso_mean": float(met["iso_mean"]), "flips": int(met["flips"]), "bijective": True,
+                      "method": "pipeline (whole part)"})
+
+    def segmented(self, comp: Component, ci: int | np.ndarray, max_charts: int | None) -> tuple[int, dict]:
+        """Segment a component (``atlas.segment``), polish the charts together, flatten a chart that fails with the
+        pipeline (:meth:`_one_by_one`). ``ci``: the component's id, or (m_c,) the id of each face (a union of
+        components). Returns (charts made, the segmentation's stats)."""
+        owner = ci if isinstance(ci, np.ndarray) else np.full(len(comp.F), ci, dtype=np.int64)
+        topo = Topology.build(comp.V, comp.F)
+        seg = segment(topo, self.bound, max_charts=max_charts, seed=self.seed)
+        groups = [np.flatnonzero(seg.chart == c) for c in range(int(seg.chart.max()) + 1)]
+        capped = seg.stats["capped"]
+        # without the polish the charts keep their LSCM layouts: held to the segmentation's own (proxy) bound
+        limit = None if capped else proxy_bound(self.bound) if self.polish is None else self.bound
+        if self.opts.mds_start == "always":  # the paper's route asked for: every chart through the pipeline
+            done, rest = [], list(range(len(groups)))
+            seg.stats["joint_polish"] = {"used": False, "reason": "mds_start='always': each chart through the pipeline"}
+        else:
+            done, rest, seg.stats["joint_polish"] = polish_charts(topo, groups, seg, limit=limit, params=self.polish)
+        start = len(self.charts)
+        for p in done:
+            self._add(comp, owner, p.faces, Fl=p.Fl, vert=p.vert, uv=p.uv, info=p.info)
+        self._one_by_one(topo, comp, owner, [(groups[i], seg.glued) for i in rest], None if capped else self.bound)
+        return len(self.charts) - start, seg.stats
+
+    def _one_by_one(self, topo: Topology, comp: Component, owner: np.ndarray, todo: list, bound: float | None
+                    ) -> None:
+        """The charts ``todo`` ((faces, glued) each) flattened by the pipeline one at a time; a chart that is not
+        bijective or exceeds ``bound`` is split in two (the paper's future-work rule) down to single faces."""
+        while todo:
+            faces, glued = todo.pop()
+            Vl, Fl, vert = chart_mesh(topo, faces, glued)
+            uv, info = self._flatten(Vl, Fl)
+            if not _chart_ok(info, bound) and len(faces) > 1:
+                pieces = halves(topo, faces, glued, self.seed)
+                if pieces:
+                    todo.extend(pieces)
+                    continue
+                quick, qiso, qbij = quick_flatten(Vl, Fl)
+                bijective = uv is not None and info.get("bijective") and not info.get("flips")
+                if qbij and not bijective:
+                    uv, info = quick, {"iso_mean": qiso, "flips": 0, "bijective": True, "method": "lscm"}
+                elif not bijective:  # last resort: one chart per face, each laid out exactly
+                    todo.extend((faces[i:i + 1], np.zeros_like(glued)) for i in range(len(faces)))
+                    continue
+            if uv is None:
+                raise HeatparamError(f"a chart of {len(faces)} faces could not be flattened: {info.get('error')}")
+            self._add(comp, owner, faces, Fl=Fl, vert=vert, uv=uv, info=info)
+
+    def _flatten(self, Vl: np.ndarray, Fl: np.ndarray) -> tuple[np.ndarray | None, dict]:
+        """The pipeline's map of one disk chart, or (None, reason) when it fails."""
+        if len(Fl) < 2:
+            uv, iso, bij = quick_flatten(Vl, Fl)
+            return uv, {"iso_mean": iso, "flips": 0 if bij else 1, "bijective": bij, "boundary_crossings": 0,
+                        "method": "exact triangle"}
+        try:
+            res = self.flatten_disk(Vl, Fl, self.opts)
+        except HeatparamError as exc:
+            return None, {"error": str(exc)}
+        met = res.report["metrics"]
+        if res.Fuv is not None and not np.array_equal(res.Fuv, Fl):
+            return None, {"error": "the pipeline cut the chart"}
+        return res.uv, {"iso_mean": float(met["iso_mean"]), "flips": int(met["flips"]),
+                        "boundary_crossings": int(met.get("boundary_crossings", 0)),
+                        "bijective": bool(met["bijective"]), "method": "pipeline"}
+
+    def _add(self, comp: Component, owner: np.ndarray, faces: np.ndarray, *, Fl: np.ndarray, vert: np.ndarray,
+             uv: np.ndarray, info: dict) -> None:
+        """A chart of ``comp`` (its ``faces``, ``vert`` in component rows) in input rows."""
+        self.charts.append(Chart(comp.faces[faces], Fl, comp.vertex[vert], uv, int(owner[faces[0]]), info))
+
+
+def _chart_ok(info: dict, bound: float | None) -> bool:
+    if "error" in info or not info["bijective"] or info["flips"]:
+        return False
+    return bound is None or info["iso_mean"] <= bound
+
+
+def _assemble(charts: list[Chart], placed: list[np.ndarray], m: int) -> AtlasResult:
+    """The packed charts as one map of the m input faces (report to come)."""
+    Fuv = np.full((m, 3), -1, dtype=np.int64)
+    chart_of = np.full(m, -1, dtype=np.int64)
+    off = 0
+    for i, c in enumerate(charts):
+        Fuv[c.faces] = c.Fl + off
+        chart_of[c.faces] = i
+        off += len(placed[i])
+    uv_vertex = np.concatenate([c.vert for c in charts]).astype(np.int64)
+    return AtlasResult(np.concatenate(placed), Fuv, uv_vertex, chart_of)
+
+
+def _report(V: np.ndarray, F: np.ndarray, res: AtlasResult, *, charts: list[Chart], rep: Repair,
+            components: list[dict], tiny: list[int], pinfo: dict) -> dict:
+    """The atlas's report: repair, components, per chart and totals, packing."""
+    A3 = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+    opp = half_edge_opposites(F)
+    cut = cut_half_edges(F, res.Fuv, opp)  # per chart seam length: its border edges that are not mesh border
+    seams = chart_seam_lengths(V, F, cut, res.chart, len(charts))
+    per = [{"chart": i, "component": c.component, "faces": int(len(c.faces)), "area": float(A3[c.faces].sum()),
+            "iso_mean": float(c.info.get("iso_mean", float("nan"))), "flips": int(c.info["flips"]),
+            "method": c.info.get("method"), "seam_length": float(seams[i])} for i, c in enumerate(charts)]
+    d = metrics.distortion(V, F, res.uv, res.Fuv)
+    L = seam_length(V, F, res.Fuv, opp, cut)
+    area = float(A3.sum())
+    totals = {
+        "charts": len(charts),
+        "seam_length": L,
+        "seam_length_over_sqrt_area": L / np.sqrt(area) if area > 0 else float("nan"),
+        "iso_mean": d["iso_mean"],
+        "iso_p95": d["iso_p95"],
+        "flips": d["flips"],
+        "overlapping_triangle_pairs": count_overlaps(res.uv, res.Fuv),
+        "uv_degenerate_faces": int(uv_degenerate_faces(res.uv, res.Fuv).sum()),
+        "packing_efficiency": pinfo["efficiency"],
+        "area": area,
+        "uv_scale": pinfo["scale"],
+    }
+    return {"repair": rep.report(),
+            "tiny_components": [{"component": i, "faces": int(len(rep.components[i].F))} for i in tiny],
+            "components": components, "charts": per, "totals": totals, "pack": pinfo}
+
+
+def _warnings(charts: int, max_charts: int | None, rep: Repair) -> list[str]:
+    return (([f"{charts} charts exceed --max-charts {max_charts}"] if max_charts is not None and charts > max_charts
+             else [])
+            + ([f"{len(rep.loose_points)} unreferenced vertices kept without UV"] if len(rep.loose_points) else []))

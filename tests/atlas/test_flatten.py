@@ -1,0 +1,89 @@
+"""Quick flattenings of many charts in one LSCM solve (atlas/flatten.py): each chart gets the map it gets alone,
+whatever the row order, and its own flips, crossings and disk test."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from heatparam import datasets
+from heatparam.atlas.chart_topology import Topology, chart_mesh
+from heatparam.atlas.flatten import flatten_charts, quick_flatten
+from heatparam.atlas.segment import segment
+
+
+def _torus_charts():
+    V, F = datasets.torus(n_major=24, n_minor=10)
+    topo = Topology.build(V, F)
+    seg = segment(topo, 1.05)
+    return topo, seg, [np.flatnonzero(seg.chart == c) for c in range(int(seg.chart.max()) + 1)]
+
+
+def test_charts_flattened_together_match_each_alone():
+    topo, seg, groups = _torus_charts()
+    assert len(groups) >= 3
+    fl = flatten_charts(topo, groups, seg.glued)
+    for i, faces in enumerate(groups):
+        alone = flatten_charts(topo, [faces], seg.glued)
+        assert np.isclose(fl.iso[i], alone.iso[0], rtol=1e-9) and fl.flips[i] == alone.flips[0]
+        Vl, Fl, vert, uv = fl.chart(i)
+        assert len(Fl) == len(faces) and (np.sort(vert) == np.sort(alone.vert)).all()
+        # the same map up to a rigid motion: equal edge lengths, face by face (both list the chart's faces in
+        # order; a vertex on a seam inside the chart has several rows, so rows are not matched by vertex)
+        A = uv[Fl]
+        Vb, Fb, vb, uvb = alone.chart(0)
+        assert (vb[Fb] == vert[Fl]).all()
+        B = uvb[Fb]
+        la = np.linalg.norm(A[:, 1] - A[:, 0], axis=1)
+        lb = np.linalg.norm(B[:, 1] - B[:, 0], axis=1)
+        np.testing.assert_allclose(la, lb, rtol=1e-7, atol=1e-12)
+    assert fl.ok(np.inf).all()  # the segmentation's charts are bijective under the proxy
+
+
+def test_pins_do_not_depend_on_the_row_order():
+    """LSCM's map depends on its two pins; they come from the geometry, so listing a chart's faces in another
+    order gives the same distortion (a merge test and the final flattening agree)."""
+    topo, seg, groups = _torus_charts()
+    big = max(groups, key=len)
+    rng = np.random.default_rng(3)
+    a = flatten_charts(topo, [big], seg.glued)
+    b = flatten_charts(topo, [rng.permutation(big)], seg.glued)
+    assert np.isclose(a.iso[0], b.iso[0], rtol=1e-9)
+
+
+def test_charts_not_wanted_get_their_meshes_but_no_layout():
+    """``flatten_charts(want=)`` (the joint polish lays out only the charts without a checked layout): the others
+    keep their meshes and disk tests, get no layout (iso inf, crossings not checked), and the wanted charts get the
+    layouts they get in a full flattening."""
+    topo, seg, groups = _torus_charts()
+    want = np.arange(len(groups)) % 2 == 0
+    full = flatten_charts(topo, groups, seg.glued)
+    part = flatten_charts(topo, groups, seg.glued, want=want)
+    np.testing.assert_array_equal(part.Fl, full.Fl)
+    np.testing.assert_array_equal(part.disk, full.disk)
+    assert np.isinf(part.iso[~want]).all() and (part.crossings[~want] == -1).all()
+    np.testing.assert_allclose(part.iso[want], full.iso[want], rtol=1e-9)
+    for i in np.flatnonzero(want):
+        np.testing.assert_allclose(part.chart(i)[3], full.chart(i)[3], atol=1e-9)
+
+
+def test_each_chart_reports_its_own_failures():
+    """A non-disk union (two charts glued along everything they share, closing a loop) and a folded chart sit in
+    the same batch as good charts: only they fail."""
+    V, F = datasets.torus(n_major=16, n_minor=8)
+    topo = Topology.build(V, F)
+    ring = np.arange(len(F))  # the whole torus welded: not a disk
+    whole = np.ones(3 * len(F), dtype=bool)
+    fl = flatten_charts(topo, [ring], whole)
+    assert not fl.disk[0] and not fl.ok(np.inf)[0]
+    one = np.array([0])
+    fl = flatten_charts(topo, [one, np.array([5, 6])], np.zeros(3 * len(F), dtype=bool))
+    assert fl.disk[0] and fl.ok(np.inf)[0] and not fl.disk[1]  # faces 5 and 6 unwelded: two pieces
+
+
+def test_quick_flatten_of_a_flat_chart_is_an_isometry():
+    s = datasets.flat_square(h=0.1)
+    uv, iso, bij = quick_flatten(s.V, s.F)
+    assert bij and iso < 1.0 + 1e-7  # an exact isometry, to the sparse solve's accuracy (~1e-9 measured)
+    topo = Topology.build(s.V, s.F)
+    Vl, Fl, _ = chart_mesh(topo, np.arange(len(s.F)), np.ones(3 * len(s.F), dtype=bool))
+    assert len(Fl) == len(s.F)
