@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from heatparam import datasets, fill, pipeline, render
+from heatparam import datasets, fill, metrics, pipeline
+from heatparam.formats import preview
 from heatparam.mesh import validate_mesh
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -37,7 +38,7 @@ def run(sh: datasets.Shape, method: str):
     uv, rep = pipeline.parameterize(sh.V, sh.F, fill=method, refine="none")
     total = time.perf_counter() - t0
     m, fr = rep["metrics"], rep["method"]["fill"]
-    err = datasets.layout_error(uv, sh.uv_true) if sh.uv_true is not None else float("nan")
+    err = metrics.layout_error(uv, sh.uv_true) if sh.uv_true is not None else float("nan")
     row = {
         "mesh": sh.name, "n": len(sh.V), "fill": method,
         "fill_s": rep["timings_s"].get("fill", 0.0), "total_s": total,
@@ -78,9 +79,9 @@ def main() -> None:
             stem = name.replace("_", "-")
             for method in ("poisson", "biharmonic"):
                 M = fill.fill_surface(sh.V, sh.F, info, method=method)
-                render.save_fill_figure(FIGURES / f"fill-{stem}-{method}-surface.png", sh.V, sh.F, M.V, M.F,
+                preview.save_fill_figure(FIGURES / f"fill-{stem}-{method}-surface.png", sh.V, sh.F, M.V, M.F,
                                         title=f"{name}, {method} fill")
-                render.save_fill_comparison(FIGURES / f"fill-{stem}-{method}-checker.png", sh.V, sh.F, uvs["none"],
+                preview.save_fill_comparison(FIGURES / f"fill-{stem}-{method}-checker.png", sh.V, sh.F, uvs["none"],
                                             uvs[method], labels=("without fill", f"with {method} fill"),
                                             title=name)
 

@@ -14,7 +14,7 @@ import time
 
 from common import machine, upsampled_camelhead
 
-from heatparam import datasets
+from heatparam import datasets, metrics
 from heatparam.pipeline import parameterize
 
 KS = (25, 50, 100, 200, 400)
@@ -29,7 +29,7 @@ def main() -> None:
             t0 = time.perf_counter()
             uv, rep = parameterize(sh.V, sh.F, geodesics=mode, landmarks=k, fill="none", refine="none")
             tt = time.perf_counter() - t0
-            err = datasets.layout_error(uv, sh.uv_true)
+            err = metrics.layout_error(uv, sh.uv_true)
             print(f"| {sh.name} | {len(sh.V)} | {mode} | {rep['parameters']['landmarks_used']} | "
                   f"{rep['metrics']['iso_mean']:.4f} | {err:.4f} | {rep['timings_s']['geodesics']:.2f} | {tt:.2f} |")
     for target in (50000, 200000):

@@ -5,7 +5,7 @@ A generated cylinder patch of about that many vertices (developable, known flat 
 σ = 0, 0.02, 0.05, 0.1, 0.2 × the mean edge length added to every vertex coordinate (seeded), as a scanner would.
 For each: the refinement's start energies (symmetric Dirichlet per area / 4, 1 = isometry) of the MDS and
 conformal layouts (the spectral map since 2026-12-02, LSCM with two pins before) and the one chosen, Newton
-iterations, iso mean, true-scale layout error (``datasets.layout_error`` against the noise-free flat layout),
+iterations, iso mean, true-scale layout error (``metrics.layout_error`` against the noise-free flat layout),
 seconds with ``--mds-start always`` and with the default ``auto`` (and what ``auto`` skipped), and whether both
 maps are bit-identical.
 """
@@ -18,7 +18,7 @@ import time
 import numpy as np
 from common import machine, noisy_cylinder_patch
 
-from heatparam import datasets, pipeline
+from heatparam import metrics, pipeline
 
 NOISE = (0.0, 0.02, 0.05, 0.1, 0.2)
 
@@ -48,7 +48,7 @@ def main() -> None:
                "heat stage (large, conformal bijective)" if "vertices, where" in skipped else
                "heat stage (conformal near-isometric)")
         print(f"| {sig:g} | {e_mds} | {e_lscm} | {r['start']['layout']} | {r['polish']['iterations']} | "
-              f"{rep['metrics']['iso_mean']:.5f} | {datasets.layout_error(uv, uv_true):.2e} | {t_always:.2f} | "
+              f"{rep['metrics']['iso_mean']:.5f} | {metrics.layout_error(uv, uv_true):.2e} | {t_always:.2f} | "
               f"{t_auto:.2f} | {why} | {'yes' if np.array_equal(uv, uv2) else 'no'} |", flush=True)
 
 

@@ -3,7 +3,7 @@
 Usage: ``python bench/bench_peers.py [name ...]`` (names of ../shared/meshes files or generated datasets).
 Columns: flips, boundary crossings, iso mean/p95, conformal mean, area mean (``metrics.summary``; these are
 scale-normalized), SD = true-scale symmetric Dirichlet energy per area / 4 (1 = isometry; the energy SLIM and our
-polish minimize; "–" where a face is flipped), true-scale layout error (``datasets.layout_error``, only where
+polish minimize; "–" where a face is flipped), true-scale layout error (``metrics.layout_error``, only where
 ``uv_true`` is known; maps that are not at true scale are first scaled by ``uv_scale`` and marked ``*``), seconds
 (wall), notes (our start layout and polish iterations, seams). On meshes with holes the default (``seams auto``) is
 also run with ``--seams none`` (one uncut piece). After each table: the best flip-free and the best bijective
@@ -19,7 +19,7 @@ import igl
 import numpy as np
 from common import load
 
-from heatparam import datasets, metrics, pipeline
+from heatparam import metrics, pipeline
 from heatparam.refine import energy
 
 MESHES = ["camelhead.off", "halftunnel.off", "beetle.off", "woody.obj", "bump-domain.obj"]
@@ -73,7 +73,7 @@ def row(method, V, F, uv, seconds, uv_true, true_scale, notes="", result=None):
     s = metrics.summary(V, F, uv, Fuv)
     if uv_true is not None:
         mark = "" if true_scale else "*"
-        le = f"{datasets.layout_error(uv * (1.0 if true_scale else s['uv_scale']), uv_true[uv_vertex]):.2e}{mark}"
+        le = f"{metrics.layout_error(uv * (1.0 if true_scale else s['uv_scale']), uv_true[uv_vertex]):.2e}{mark}"
     else:
         le = "–"
     sd = sd_energy(V, F, uv, Fuv) if true_scale else float("nan")

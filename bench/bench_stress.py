@@ -5,7 +5,7 @@ For each mesh: ``--stress none`` / ``smacof`` × ``--refine none`` / ``sd``, eve
 (fill auto, geodesics auto). Columns: the path SMACOF ran on (all-pairs or landmarks) and its Guttman iterations,
 the relative RMS stress of Eq. 1 on the MDS distances before → after SMACOF, SMACOF seconds, the refinement's
 start layout and Newton iterations, flips, iso mean (``report["metrics"]["iso_mean"]``), true-scale layout error
-(``datasets.layout_error`` / diameter, generated datasets only) and the whole ``parameterize`` call in seconds.
+(``metrics.layout_error`` / diameter, generated datasets only) and the whole ``parameterize`` call in seconds.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import time
 
 from common import load, machine
 
-from heatparam import datasets, pipeline
+from heatparam import metrics, pipeline
 
 SHAPES = ["cylinder_patch", "cylinder_with_holes", "cone_s_strip", "curved_cap_with_holes"]
 MESHES = ["halftunnel.off", "beetle.off", "camelhead.off", "woody.obj", "bump-domain.obj"]
@@ -34,7 +34,7 @@ def row(name: str, V, F, uvt, refine: str, stress: str) -> str:
         sm = "– | – | –"
     r = meth["refine"]
     ref = f"{r['start']['layout']} | {r['polish']['iterations']}" if refine != "none" else "– | –"
-    le = f"{datasets.layout_error(uv, uvt):.2e}" if uvt is not None else "–"
+    le = f"{metrics.layout_error(uv, uvt):.2e}" if uvt is not None else "–"
     return (f"| {name} | {refine} | {stress} | {sm} | {ref} | {m['flips']} | {m['iso_mean']:.4f} | {le} | "
             f"{dt:.2f} |")
 

@@ -303,9 +303,12 @@ def test_usage_errors_exit_2(tmp_path, capsys, args, message):
 
 
 def test_unavailable_format_is_a_usage_error(tmp_path, capsys, monkeypatch):
-    from heatparam import batching
+    import dataclasses
 
-    monkeypatch.setitem(batching.FORMATS, "step", "no_such_module_for_heatparam_tests")  # as if OCP were missing
+    from heatparam.formats import exporters
+
+    missing = dataclasses.replace(exporters.BY_NAME["step"], requires="no_such_module_for_heatparam_tests")
+    monkeypatch.setitem(exporters.BY_NAME, "step", missing)  # as if OCP were missing
     code = main(["batch", str(shared_mesh("woody.obj")), "-o", str(tmp_path / "out"), "--format", "obj,step"])
     assert code == 2 and "format step is not available" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
@@ -314,10 +317,10 @@ def test_unavailable_format_is_a_usage_error(tmp_path, capsys, monkeypatch):
 def test_suffixes_and_formats_agree_with_formats_package():
     from heatparam import batching
     from heatparam.formats import MESH_SUFFIXES
-    from heatparam.formats.outputs import MAP_FORMATS
+    from heatparam.formats.exporters import batch_formats, map_formats
 
     assert batching.MESH_SUFFIXES == MESH_SUFFIXES
-    assert set(batching.FORMATS) == set(MAP_FORMATS) | {"json"}
+    assert set(batch_formats()) == set(map_formats()) | {"json"}  # every map format, and the report
 
 
 def test_unwrap_file_is_the_unwrap_command(tmp_path):

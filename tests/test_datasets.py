@@ -11,6 +11,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull
 
 from heatparam import datasets as S
+from heatparam import metrics
 
 DEFAULT_H = {
     "cylinder_patch": 0.04,
@@ -87,7 +88,7 @@ def test_arrays_and_size(datasets, name):
         assert sh.uv_true.dtype == np.float64 and sh.uv_true.shape == (sh.n_vertices, 2)
     assert 1500 <= sh.n_vertices <= 4000
     assert np.isfinite(sh.V).all()
-    d3, d2 = S.diameter(sh.V), S.diameter(flat(sh))
+    d3, d2 = metrics.diameter(sh.V), metrics.diameter(flat(sh))
     assert 1.0 <= d3 <= 3.0 and 1.0 <= d2 <= 3.2
 
 
@@ -276,41 +277,12 @@ def test_mesh_domain_recovers_thin_notch():
     assert np.linalg.norm(uv[lp] - uv[np.roll(lp, -1)], axis=1).sum() == pytest.approx(perimeter, rel=1e-12)
 
 
-def test_layout_error_rigid_and_scale(datasets):
-    uv = datasets["cone_s_strip"].uv_true
-    th = 0.7
-    R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
-    moved = uv @ R.T + np.array([3.0, -2.0])
-    assert S.layout_error(moved, uv) < 1e-12
-    assert S.rigid_align_error(moved, uv) < 1e-12
-    mirrored = moved * np.array([-1.0, 1.0])  # reflections are allowed
-    assert S.layout_error(mirrored, uv) < 1e-12
-    np.testing.assert_allclose(S.rigid_align(mirrored, uv), uv, atol=1e-12)
-    assert S.layout_error(1.01 * uv, uv) > 0.004
-    assert S.layout_error(1.01 * moved, uv) > 0.004
-    assert 0 < S.layout_rmse(1.01 * uv, uv) < S.layout_error(1.01 * uv, uv)
-    noisy = uv + 1e-3 * np.random.default_rng(1).standard_normal(uv.shape)
-    assert 1e-4 < S.layout_error(noisy, uv) < 5e-3
-
-
-def test_diameter_matches_brute_force():
-    rng = np.random.default_rng(2)
-    for X in (
-        rng.standard_normal((300, 2)),
-        rng.standard_normal((300, 3)),
-        np.column_stack([rng.standard_normal((200, 2)), np.zeros(200)]),  # planar points in 3D
-        np.outer(rng.standard_normal(50), [1.0, 2.0]),  # collinear
-    ):
-        brute = np.linalg.norm(X[:, None] - X[None], axis=2).max()
-        assert S.diameter(X) == pytest.approx(brute, rel=1e-12)
-
-
 def test_scale_shape(datasets):
     sh = datasets["cylinder_patch"]
     big = S.scale_shape(sh, 2.5)
     np.testing.assert_array_equal(big.V, 2.5 * sh.V)
     np.testing.assert_array_equal(big.uv_true, 2.5 * sh.uv_true)
     assert np.array_equal(big.F, sh.F) and big.name == sh.name
-    assert S.layout_error(big.uv_true, sh.uv_true) > 0.1
+    assert metrics.layout_error(big.uv_true, sh.uv_true) > 0.1
     cap = S.scale_shape(datasets["curved_cap_with_holes"], 0.5)
     assert cap.uv_true is None and np.array_equal(cap.V, 0.5 * datasets["curved_cap_with_holes"].V)

@@ -11,7 +11,7 @@ import igl
 import numpy as np
 import pytest
 
-from heatparam import datasets, fill, pipeline
+from heatparam import datasets, fill, metrics, pipeline
 from heatparam.errors import HeatparamError
 from heatparam.mesh import validate_mesh
 
@@ -55,7 +55,7 @@ def test_developable_with_fill_is_near_isometric(name, method, request):
     assert m["flips"] == 0
     assert m["boundary_crossings"] == 0
     assert m["iso_mean"] <= 1.10
-    assert datasets.layout_error(uv, sh.uv_true) <= 0.03
+    assert metrics.layout_error(uv, sh.uv_true) <= 0.03
     assert fr["boundary_loops"] == 1
 
 

@@ -4,6 +4,7 @@ import math
 import numpy as np
 import pytest
 
+from heatparam import datasets
 from heatparam import metrics as M
 from heatparam.mesh import boundary_loops
 
@@ -373,3 +374,31 @@ def test_weighted_quantile_is_the_stable_sort_s():
             w = rng.random(n)
             for q in (0.0, 0.5, 0.95, 1.0):
                 assert _weighted_quantile(x, w, q) == reference(x, w, q)
+
+
+def test_layout_error_rigid_and_scale():
+    uv = datasets.cone_s_strip().uv_true
+    th = 0.7
+    R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+    moved = uv @ R.T + np.array([3.0, -2.0])
+    assert M.layout_error(moved, uv) < 1e-12
+    mirrored = moved * np.array([-1.0, 1.0])  # reflections are allowed
+    assert M.layout_error(mirrored, uv) < 1e-12
+    np.testing.assert_allclose(M.rigid_align(mirrored, uv), uv, atol=1e-12)
+    assert M.layout_error(1.01 * uv, uv) > 0.004
+    assert M.layout_error(1.01 * moved, uv) > 0.004
+    assert 0 < M.layout_rmse(1.01 * uv, uv) < M.layout_error(1.01 * uv, uv)
+    noisy = uv + 1e-3 * np.random.default_rng(1).standard_normal(uv.shape)
+    assert 1e-4 < M.layout_error(noisy, uv) < 5e-3
+
+
+def test_diameter_matches_brute_force():
+    rng = np.random.default_rng(2)
+    for X in (
+        rng.standard_normal((300, 2)),
+        rng.standard_normal((300, 3)),
+        np.column_stack([rng.standard_normal((200, 2)), np.zeros(200)]),  # planar points in 3D
+        np.outer(rng.standard_normal(50), [1.0, 2.0]),  # collinear
+    ):
+        brute = np.linalg.norm(X[:, None] - X[None], axis=2).max()
+        assert M.diameter(X) == pytest.approx(brute, rel=1e-12)

@@ -34,15 +34,11 @@ given as files or globs go to the top of OUTDIR, or below the glob's fixed folde
 from __future__ import annotations
 
 import contextlib
-import csv
 import ctypes
 import dataclasses
 import glob
 import hashlib
-import html
-import importlib
 import importlib.util
-import io as _io
 import json
 import os
 import shutil
@@ -57,15 +53,10 @@ from heatparam import __version__
 from heatparam.errors import HeatparamError, ResourceError
 from heatparam.options import Options, make_options
 
-#: ``--format`` names: the module each needs (None: nothing beyond heatparam's own). The report JSON is always
-#: written; every format is written by the unwrap job (``unwrap.write_outputs``), all outputs of a mesh together.
-FORMATS = {"obj": None, "json": None, "ply": None, "glb": None, "dxf": "ezdxf", "svg": None, "step": "OCP"}
 #: Mesh suffixes searched in folders (heatparam.formats.MESH_SUFFIXES; a test checks they agree).
 MESH_SUFFIXES = (".obj", ".off", ".ply", ".stl", ".glb", ".gltf")
 TMP_PREFIX = ".heatparam-tmp-"
 STATUSES = ("ok", "refused", "failed", "skipped")
-COLUMNS = ("input", "output", "status", "reason", "vertices", "charts", "iso_mean", "flips", "crossings",
-           "seconds", "peak_mem_mb")
 #: How often a task checks its subprocess's memory and time, in seconds.
 POLL_S = 0.05
 
@@ -120,8 +111,18 @@ def discover(inputs: list[str | os.PathLike], out_dir: str | os.PathLike) -> lis
     list of :class:`Item`, sorted by output path. Raises ``HeatparamError`` for an input that does not exist,
     a glob or folder that holds no mesh, an empty list, or colliding outputs.
     """
-    out = Path(out_dir).resolve()
-    found: dict[Path, tuple[Path, PurePosixPath]] = {}  # resolved input -> (path as given, rel folder)
+    if not inputs:
+        raise HeatparamError("no input: give mesh files, folders or globs")
+    found = _found_meshes(inputs, Path(out_dir).resolve())
+    if not found:
+        raise HeatparamError(f"no mesh to flatten (every input lies inside the output folder {out_dir})")
+    return _named_items(found, Path(out_dir))
+
+
+def _found_meshes(inputs: list[str | os.PathLike], out: Path) -> dict[Path, tuple[Path, PurePosixPath]]:
+    """Each mesh named by ``inputs`` once, outside ``out``: resolved path → (path as given, its output folder
+    relative to the folder or glob root it was found under)."""
+    found: dict[Path, tuple[Path, PurePosixPath]] = {}
 
     def add(p: Path, root: Path | None) -> None:
         r = p.resolve()
@@ -130,8 +131,6 @@ def discover(inputs: list[str | os.PathLike], out_dir: str | os.PathLike) -> lis
         rel = PurePosixPath(p.parent.resolve().relative_to(root.resolve()).as_posix()) if root else PurePosixPath()
         found[r] = (p, rel)
 
-    if not inputs:
-        raise HeatparamError("no input: give mesh files, folders or globs")
     for s in map(str, inputs):
         p = Path(s)
         if p.is_file():
@@ -152,8 +151,12 @@ def discover(inputs: list[str | os.PathLike], out_dir: str | os.PathLike) -> lis
                 add(h, root)
         else:
             raise HeatparamError(f"cannot read {p}: no such file or folder")
-    if not found:
-        raise HeatparamError(f"no mesh to flatten (every input lies inside the output folder {out_dir})")
+    return found
+
+
+def _named_items(found: dict[Path, tuple[Path, PurePosixPath]], out_dir: Path) -> list[Item]:
+    """The items of the found meshes, sorted by output path; two meshes of one stem in one folder are told apart
+    by their suffixes (``part-obj``, ``part-off``), or refused when they have the same suffix too."""
     groups: dict[tuple[PurePosixPath, str], list[tuple[Path, PurePosixPath]]] = {}
     for p, rel in found.values():
         groups.setdefault((rel, p.stem), []).append((p, rel))
@@ -165,7 +168,7 @@ def discover(inputs: list[str | os.PathLike], out_dir: str | os.PathLike) -> lis
         suffixes = [p.suffix.lower() for p, _ in members]
         if len(set(suffixes)) < len(suffixes):
             names = ", ".join(str(p) for p, _ in members)
-            raise HeatparamError(f"{names} would all be written to {Path(out_dir) / rel / stem}.obj — give "
+            raise HeatparamError(f"{names} would all be written to {out_dir / rel / stem}.obj — give "
                                  "their common folder instead of the files, or flatten them in separate batches")
         items += [Item(p, rel, f"{stem}-{p.suffix[1:].lower()}") for p, _ in members]
     return sorted(items, key=lambda it: (str(it.rel), it.stem))
@@ -195,7 +198,7 @@ def _expected_outputs(item: Item, out_dir: Path, formats: tuple[str, ...], previ
     return [item.output(out_dir, e) for e in exts]
 
 
-def up_to_date(item: Item, out_dir: Path, opt_hash: str, formats: tuple[str, ...], preview: bool) -> dict | None:
+def up_to_date(item: Item, out_dir: Path, opt_hash: str, *, formats: tuple[str, ...], preview: bool) -> dict | None:
     """The report of ``item``'s earlier outputs when they can be kept (see module docstring), else None."""
     rep_path = item.output(out_dir, "json")
     try:
@@ -240,8 +243,8 @@ def _refused_again(item: Item, refusals: dict, opt_hash: str, out_dir: Path) -> 
     return row
 
 
-def _row_from_report(item: Item, out_dir: Path, status: str, report: dict, seconds: float | None,
-                     peak_mb: float | None) -> dict:
+def _row_from_report(item: Item, out_dir: Path, status: str, report: dict, *, seconds: float | None = None,
+                     peak_mb: float | None = None) -> dict:
     m = report.get("metrics", {})
     man = report.get("batch", {})
     return {
@@ -254,7 +257,7 @@ def _row_from_report(item: Item, out_dir: Path, status: str, report: dict, secon
     }
 
 
-def _bad_row(item: Item, out_dir: Path, status: str, reason: str, seconds: float = 0.0,
+def _bad_row(item: Item, out_dir: Path, status: str, reason: str, *, seconds: float = 0.0,
              peak_mb: float | None = None) -> dict:
     return {"input": str(item.input), "output": str(item.output(out_dir, "obj").relative_to(out_dir)),
             "status": status, "reason": reason, "vertices": None, "charts": None, "iso_mean": None, "flips": None,
@@ -284,7 +287,8 @@ def _job_main(tmp: str) -> None:
         src = Path(spec["input"])
         st = src.stat()
         outs = [tmp_p / f"{stem}.{f}" for f in spec["formats"] if f != "json"]
-        result = unwrap_file(src, outs, None, tmp_p / f"{stem}.png" if spec["preview"] else None, opts, quiet=True)
+        result = unwrap_file(src, outs, preview=tmp_p / f"{stem}.png" if spec["preview"] else None, options=opts,
+                             quiet=True)
         report = result.report
         report["batch"] = {
             "options_hash": spec["options_hash"], "formats": spec["formats"], "preview": spec["preview"],
@@ -374,17 +378,17 @@ def _death_reason(tmp: Path, rc: int) -> str:
     return f"the job died: {why}" + (f": {last[-1]}" if last else "")
 
 
-def _job_row(item: Item, out_dir: Path, spec: dict, tmp: Path, rc: int, seconds: float,
+def _job_row(item: Item, out_dir: Path, spec: dict, tmp: Path, *, rc: int, seconds: float,
              peak_mb: float | None) -> dict:
     """The summary row of a job that ran to its end in ``tmp``; on success its outputs are moved into place, the
     report last."""
     try:
         res = json.loads((tmp / "result.json").read_text())
     except (OSError, ValueError):
-        return _bad_row(item, out_dir, "failed", _death_reason(tmp, rc), seconds, peak_mb)
+        return _bad_row(item, out_dir, "failed", _death_reason(tmp, rc), seconds=seconds, peak_mb=peak_mb)
     peak_mb = max(peak_mb or 0.0, res.get("peak_mem_mb") or 0.0) or None
     if res["status"] != "ok":
-        row = _bad_row(item, out_dir, res["status"], res["reason"], seconds, peak_mb)
+        row = _bad_row(item, out_dir, res["status"], res["reason"], seconds=seconds, peak_mb=peak_mb)
         if res.get("final"):
             st = item.input.stat()
             row["_refusal"] = {"options_hash": spec["options_hash"], "size": st.st_size,
@@ -393,12 +397,12 @@ def _job_row(item: Item, out_dir: Path, spec: dict, tmp: Path, rc: int, seconds:
     report = json.loads((tmp / f"{item.stem}.json").read_text())
     for p in _expected_outputs(item, out_dir, tuple(spec["formats"]), spec["preview"]):  # report last
         os.replace(tmp / p.name, p)
-    return _row_from_report(item, out_dir, "ok", report, seconds, peak_mb)
+    return _row_from_report(item, out_dir, "ok", report, seconds=seconds, peak_mb=peak_mb)
 
 
 def run_job(spec: dict) -> dict:
     """One mesh, as a Dask task: the job in a subprocess under the time and memory limits; outputs renamed into
-    place on success. Returns the summary row (a dict of :data:`COLUMNS`)."""
+    place on success. Returns the summary row (a dict of ``formats.summary.COLUMNS``)."""
     item = Item(Path(spec["input"]), PurePosixPath(spec["rel"]), spec["stem"])
     out_dir = Path(spec["out_dir"])
     dest = out_dir / item.rel
@@ -413,8 +417,8 @@ def run_job(spec: dict) -> dict:
         seconds = time.perf_counter() - t0
         peak_mb = round(peak / 2**20, 1) if peak else None
         if reason:
-            return _bad_row(item, out_dir, "failed", reason, seconds, peak_mb)
-        return _job_row(item, out_dir, spec, tmp, rc, seconds, peak_mb)
+            return _bad_row(item, out_dir, "failed", reason, seconds=seconds, peak_mb=peak_mb)
+        return _job_row(item, out_dir, spec, tmp, rc=rc, seconds=seconds, peak_mb=peak_mb)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
@@ -428,18 +432,17 @@ def _clean_tmp(out_dir: Path) -> None:
 
 
 def parse_formats(formats: str | list[str] | tuple[str, ...]) -> tuple[str, ...]:
-    """Validate ``--format`` names (comma-separated or a list); the report ``json`` is always included."""
+    """Validate ``--format`` names (comma-separated or a list; ``formats.exporters``); the report ``json`` is always
+    included."""
+    from heatparam.formats.exporters import BY_NAME, batch_formats
+
     names = [f.strip().lower() for f in (formats.split(",") if isinstance(formats, str) else formats) if f.strip()]
     for f in names:
-        if f not in FORMATS:
-            raise HeatparamError(f"unknown format {f!r}: use one of {', '.join(FORMATS)}")
-        if FORMATS[f]:
-            try:
-                available = importlib.util.find_spec(FORMATS[f]) is not None
-            except ModuleNotFoundError:  # no heatparam.formats package at all
-                available = False
-            if not available:
-                raise HeatparamError(f"format {f} is not available in this installation (no {FORMATS[f]})")
+        if f not in batch_formats():
+            raise HeatparamError(f"unknown format {f!r}: use one of {', '.join(batch_formats())}")
+        missing = BY_NAME[f].missing_requirement()
+        if missing:
+            raise HeatparamError(f"format {f} is not available in this installation (no {missing})")
     if "obj" not in names:
         names.insert(0, "obj")  # the OBJ with UVs is the map itself: always written
     return tuple(dict.fromkeys(names + ["json"]))
@@ -536,12 +539,13 @@ def run_batch(paths, out_dir, client=None, *, formats="obj", force: bool = False
     opts = make_options(options, **option_fields, progress=False)
     opts.validate()
     fmts = parse_formats(formats)
-    mem = _check_limits(task_timeout, task_memory, workers, scheduler, client)
+    mem = _check_limits(task_timeout=task_timeout, task_memory=task_memory, workers=workers, scheduler=scheduler,
+                       client=client)
     out, items = _prepare_out(paths, out_dir)
     h = options_hash(opts, fmts, preview)
     _clean_tmp(out)
 
-    rows, todo = _triage(items, out, h, fmts, preview, force)
+    rows, todo = _triage(items, out, h, fmts=fmts, preview=preview, force=force)
     opt_fields = {k: v for k, v in dataclasses.asdict(opts).items()}
     specs = {i: {"input": str(items[i].input), "rel": str(items[i].rel), "stem": items[i].stem, "out_dir": str(out),
                  "formats": list(fmts), "preview": preview, "options": opt_fields, "options_hash": h,
@@ -549,21 +553,23 @@ def run_batch(paths, out_dir, client=None, *, formats="obj", force: bool = False
     interrupted = False
     if todo:
         with _client(client, scheduler, workers) as c:
-            interrupted = _submit(c, items, specs, rows, out, progress)
+            interrupted = _submit(c, items, specs, rows, out=out, progress=progress)
     _clean_tmp(out)
-    ordered = _final_rows(items, rows, out, h, fmts, preview)
+    ordered = _final_rows(items, rows, out, h, fmts=fmts, preview=preview)
     refusals = {r["input"]: {**r.pop("_refusal"), "reason": r["reason"]} for r in ordered if "_refusal" in r}
     counts = {s: sum(r["status"] == s for r in ordered) for s in STATUSES}
     summary = {"heatparam_version": __version__, "out_dir": str(out), "options": opt_fields, "options_hash": h,
                "formats": list(fmts), "wall_s": round(time.perf_counter() - t_start, 3), "counts": counts,
                "interrupted": interrupted, "rows": ordered, "refusals": refusals}
+    from heatparam.formats.summary import write_summary
+
     write_summary(out, summary)
     if interrupted:
         raise KeyboardInterrupt
     return summary
 
 
-def _check_limits(task_timeout: float | None, task_memory, workers: int | None, scheduler: str | None,
+def _check_limits(*, task_timeout: float | None, task_memory, workers: int | None, scheduler: str | None,
                   client) -> int | None:
     """Validate :func:`run_batch`'s task limits and cluster choice; returns ``task_memory`` in bytes (or None)."""
     if task_timeout is not None and not task_timeout > 0:
@@ -586,16 +592,16 @@ def _prepare_out(paths: list, out_dir) -> tuple[Path, list[Item]]:
     return out.resolve(), [Item(it.input.resolve(), it.rel, it.stem) for it in items]
 
 
-def _triage(items: list[Item], out: Path, h: str, fmts: tuple[str, ...], preview: bool,
+def _triage(items: list[Item], out: Path, h: str, *, fmts: tuple[str, ...], preview: bool,
             force: bool) -> tuple[dict[int, dict], list[int]]:
     """Rows for the inputs that need no run (up to date, or refused before), and the indices of the others."""
     rows: dict[int, dict] = {}
     todo = []
     refused_before = {} if force else _previous_refusals(out)
     for i, it in enumerate(items):
-        rep = None if force else up_to_date(it, out, h, fmts, preview)
+        rep = None if force else up_to_date(it, out, h, formats=fmts, preview=preview)
         if rep is not None:
-            rows[i] = _row_from_report(it, out, "skipped", rep, None, None)
+            rows[i] = _row_from_report(it, out, "skipped", rep)
         elif (prev := _refused_again(it, refused_before, h, out)) is not None:
             rows[i] = prev
         else:
@@ -603,19 +609,19 @@ def _triage(items: list[Item], out: Path, h: str, fmts: tuple[str, ...], preview
     return rows, todo
 
 
-def _final_rows(items: list[Item], rows: dict[int, dict], out: Path, h: str, fmts: tuple[str, ...],
+def _final_rows(items: list[Item], rows: dict[int, dict], out: Path, h: str, *, fmts: tuple[str, ...],
                 preview: bool) -> list[dict]:
     """All rows in input order; an input with no row (interrupted) is ok when its outputs got into place, else
     failed."""
     for i, it in enumerate(items):
         if i not in rows:
-            rep = up_to_date(it, out, h, fmts, preview)
-            rows[i] = (_row_from_report(it, out, "ok", rep, None, None) if rep is not None
+            rep = up_to_date(it, out, h, formats=fmts, preview=preview)
+            rows[i] = (_row_from_report(it, out, "ok", rep) if rep is not None
                        else _bad_row(it, out, "failed", "interrupted"))
     return [rows[i] for i in range(len(items))]
 
 
-def _submit(client, items: list[Item], specs: dict[int, dict], rows: dict[int, dict], out: Path,
+def _submit(client, items: list[Item], specs: dict[int, dict], rows: dict[int, dict], *, out: Path,
             progress: bool) -> bool:
     """Run the jobs on ``client``, filling ``rows``; True when interrupted (Ctrl-C)."""
     from distributed import as_completed
@@ -647,69 +653,3 @@ def _submit(client, items: list[Item], specs: dict[int, dict], rows: dict[int, d
     finally:
         bar.close()
     return False
-
-
-# -------------------------------------------------------------------------------------------------- summaries
-
-def write_summary(out: Path, summary: dict) -> None:
-    """``summary.json``, ``summary.csv`` (one row per input, :data:`COLUMNS`) and ``index.html``, atomically."""
-    from heatparam.formats import atomic_write, save_json
-
-    save_json(out / "summary.json", summary)
-    buf = _io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n")
-    w.writeheader()
-    for r in summary["rows"]:
-        w.writerow({k: "" if r[k] is None else r[k] for k in COLUMNS})
-    with atomic_write(out / "summary.csv") as fh:
-        fh.write(buf.getvalue())
-    with atomic_write(out / "index.html") as fh:
-        fh.write(_gallery(out, summary))
-
-
-_SORT_JS = """
-document.querySelectorAll('th').forEach((th, col) => th.addEventListener('click', () => {
-  const body = th.closest('table').tBodies[0], rows = Array.from(body.rows);
-  const asc = th.dataset.asc !== '1'; th.dataset.asc = asc ? '1' : '0';
-  const key = r => { const t = r.cells[col].dataset.v ?? r.cells[col].textContent; const x = parseFloat(t);
-                     return isNaN(x) ? t : x; };
-  rows.sort((a, b) => { const x = key(a), y = key(b); return (x > y ? 1 : x < y ? -1 : 0) * (asc ? 1 : -1); });
-  rows.forEach(r => body.appendChild(r));
-}));
-"""
-
-
-def _gallery(out: Path, summary: dict) -> str:
-    """A static, sortable HTML table of the summary, with each mesh's preview when there is one."""
-    cols = [c for c in COLUMNS if c != "output"]
-    head = "".join(f"<th>{html.escape(c)}</th>" for c in ["preview", *cols])
-    body = []
-    for r in summary["rows"]:
-        png = Path(r["output"]).with_suffix(".png").as_posix()
-        img = (f'<a href="{html.escape(png)}"><img src="{html.escape(png)}" loading="lazy"></a>'
-               if (out / png).is_file() else "")
-        obj = html.escape(Path(r["output"]).as_posix())
-        cells = [f"<td>{img}</td>"]
-        for c in cols:
-            v = r[c]
-            text = "" if v is None else (f"{v:.4f}" if isinstance(v, float) and c == "iso_mean" else str(v))
-            if c == "input" and r["status"] in ("ok", "skipped"):
-                cells.append(f'<td><a href="{obj}">{html.escape(text)}</a></td>')
-            else:
-                cls = html.escape(r["status"]) if c == "status" else ""
-                cells.append(f'<td class="{cls}">{html.escape(text)}</td>')
-        body.append("<tr>" + "".join(cells) + "</tr>")
-    counts = ", ".join(f"{n} {s}" for s, n in summary["counts"].items() if n)
-    return (
-        "<!doctype html><html><head><meta charset='utf-8'><title>heatparam batch</title><style>"
-        "body{font-family:sans-serif;margin:1em}table{border-collapse:collapse}td,th{border:1px solid #ccc;"
-        "padding:2px 6px;font-size:13px}th{cursor:pointer;background:#eee}img{height:80px}"
-        ".refused{color:#b60}.failed{color:#c00}.ok{color:#070}</style></head><body>"
-        f"<h1>heatparam batch</h1><p>{len(summary['rows'])} meshes: {html.escape(counts)}; "
-        f"{summary['wall_s']:.1f} s; heatparam {html.escape(summary['heatparam_version'])}; click a column to sort."
-        f"</p><table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
-        f"<script>{_SORT_JS}</script></body></html>\n"
-    )
-
-
-# ------------------------------------------------------------------------------------------------------- CLI

@@ -66,7 +66,8 @@ def _positive_int(text: str) -> int:
 
 def _add_batch_arguments(p: argparse.ArgumentParser) -> None:
     """The arguments of ``heatparam batch`` other than the pipeline options (the option table's)."""
-    from heatparam.batching import FORMATS, MESH_SUFFIXES
+    from heatparam.batching import MESH_SUFFIXES
+    from heatparam.formats.exporters import batch_formats
 
     p.add_argument("inputs", nargs="+", metavar="INPUT", help="mesh files, folders (searched recursively for "
                    f"{' '.join(MESH_SUFFIXES)}) or globs")
@@ -74,7 +75,7 @@ def _add_batch_arguments(p: argparse.ArgumentParser) -> None:
                    help="output folder: OUTDIR/<relative path>/<stem>.obj and .json, summary.csv, summary.json, "
                         "index.html")
     p.add_argument("--format", default="obj", metavar="FMT[,FMT...]",
-                   help=f"output formats, of {', '.join(FORMATS)} (the json report is always written; default: "
+                   help=f"output formats, of {', '.join(batch_formats())} (the json report is always written; default: "
                         "%(default)s)")
     p.add_argument("--workers", type=_positive_int, metavar="N",
                    help="worker processes of the local Dask cluster (default: one per core)")
@@ -108,6 +109,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``heatparam`` parser: one subcommand per ``COMMANDS`` entry."""
     ap = _Parser(
         prog="heatparam",
         description="Near-isometric (true-scale) mesh parameterization: heat-method geodesics + MDS "
@@ -115,7 +117,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--version", action="version", version=f"heatparam {__version__}")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
+    for add in (_add_unwrap, _add_batch, _add_geodesics, _add_evaluate, _add_demo):
+        add(sub)
+    return ap
 
+
+def _add_unwrap(sub) -> None:
     u = sub.add_parser("unwrap", help="flatten a mesh and write an OBJ with UVs",
                        description="Flatten a disk-like mesh (with holes) into the plane at true scale.")
     u.add_argument("input", help="mesh file (.obj .off .ply .stl .glb)")
@@ -141,6 +148,8 @@ def build_parser() -> argparse.ArgumentParser:
     u.add_argument("--preview", metavar="P.png", help="write a PNG: UV layout coloured by distortion + 3D view")
     u.add_argument("--quiet", action="store_true", help="no progress output")
 
+
+def _add_batch(sub) -> None:
     b = sub.add_parser("batch", help="flatten many meshes (files, folders, globs) on a Dask cluster",
                        description="Run the unwrap pipeline on every mesh found, one task per mesh, on a local Dask "
                                    "cluster (default) or the scheduler at --scheduler; resumable; writes "
@@ -150,6 +159,8 @@ def build_parser() -> argparse.ArgumentParser:
         _add_option(b, opt)
     b.add_argument("--quiet", action="store_true", help="no progress output")
 
+
+def _add_geodesics(sub) -> None:
     g = sub.add_parser("geodesics", help="heat-method geodesic distances from source vertices",
                        description="Write an (n, k) .npy array: column j = distances from source j.")
     g.add_argument("input", help="mesh file")
@@ -160,12 +171,16 @@ def build_parser() -> argparse.ArgumentParser:
             _add_option(g, opt)
     g.add_argument("--quiet", action="store_true", help="no progress output")
 
+
+def _add_evaluate(sub) -> None:
     e = sub.add_parser("evaluate", help="print distortion/bijectivity metrics of any OBJ with UVs",
                        description="Judge any tool's map (OBJ with vt) with heatparam's yardstick.")
     e.add_argument("input", help="OBJ with vt")
     e.add_argument("--report", metavar="R.json", help="also write the metrics as JSON")
     e.add_argument("--quiet", action="store_true", help="do not print the metrics")
 
+
+def _add_demo(sub) -> None:
     m = sub.add_parser("demo", help="run on a built-in generated surface (no download)",
                        description="Unwrap a generated scan-like part (a noisy cylinder patch with two holes, "
                                    "in mm) where the heat geodesics and MDS start the refinement, and write "
@@ -174,7 +189,6 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("-o", "--output-dir", default="heatparam-demo", help="folder for the outputs "
                    "(created; default: %(default)s)")
     m.add_argument("--quiet", action="store_true", help="no progress output")
-    return ap
 
 
 def cmd_unwrap(args: argparse.Namespace) -> int:
@@ -193,7 +207,8 @@ def cmd_unwrap(args: argparse.Namespace) -> int:
             print(f"heatparam: warning: {flag} applies to {' and '.join('.' + w for w in where)} outputs only "
                   "(none requested)", file=sys.stderr)
     opts = make_options(progress=not args.quiet, **{o.name: getattr(args, o.name) for o in cli_options()})
-    unwrap_planned(args.input, plans, opts, args.quiet, args.units, sheet, args.strain_map, args.fit_tolerance)
+    unwrap_planned(args.input, plans, options=opts, quiet=args.quiet, units=args.units, sheet=sheet,
+                   strain_map=args.strain_map, fit_tolerance=args.fit_tolerance)
     return 0
 
 

@@ -22,7 +22,7 @@ import numpy as np
 from matplotlib.path import Path
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
-from scipy.spatial import ConvexHull, Delaunay, QhullError
+from scipy.spatial import Delaunay
 
 from heatparam.mesh.planar import polygon_area, signed_areas
 
@@ -34,11 +34,8 @@ __all__ = [
     "curved_cap_with_holes",
     "cylinder_patch",
     "cylinder_with_holes",
-    "diameter",
     "flat_disk",
     "flat_square",
-    "layout_error",
-    "layout_rmse",
     "noisy_scan_part",
     "closed_cube",
     "capped_cylinder",
@@ -48,8 +45,6 @@ __all__ = [
     "polygon",
     "lift_sphere",
     "mesh_domain",
-    "rigid_align",
-    "rigid_align_error",
     "scale_shape",
     "wrap_cone",
 ]
@@ -523,69 +518,6 @@ SHAPES: dict[str, Callable[..., Shape]] = {
     "flat_disk": flat_disk,
     "flat_square": flat_square,
 }
-
-
-# ----------------------------------------------------------------------------------------------------------
-# layout error
-# ----------------------------------------------------------------------------------------------------------
-
-
-def diameter(X: np.ndarray) -> float:
-    """Largest pairwise distance of the points X (n,d), via the convex hull (no n^2 memory)."""
-    X = np.asarray(X, dtype=np.float64)
-    if len(X) < 2:
-        return 0.0
-    c = X - X.mean(axis=0)
-    _, sv, Vt = np.linalg.svd(c, full_matrices=False)
-    rank = int(np.sum(sv > 1e-9 * max(sv[0], 1e-300)))
-    if rank == 0:
-        return 0.0
-    Y = c @ Vt[:rank].T  # coordinates in the affine span (planar points in 3D -> 2D)
-    if rank == 1:
-        return float(Y.max() - Y.min())
-    try:
-        P = Y[ConvexHull(Y).vertices]
-    except QhullError:  # nearly degenerate: fall back to the extremes along the principal axis
-        return float(Y[:, 0].max() - Y[:, 0].min())
-    best = 0.0
-    for i in range(0, len(P), 512):
-        d = np.linalg.norm(P[i : i + 512, None, :] - P[None, :, :], axis=2)
-        best = max(best, float(d.max()))
-    return best
-
-
-def rigid_align(uv: np.ndarray, uv_true: np.ndarray) -> np.ndarray:
-    """Best rigid motion of uv onto uv_true (least squares; rotation, reflection, translation, NO scaling).
-
-    Parameters
-    ----------
-    uv, uv_true : (n,d) corresponding points.
-
-    Returns
-    -------
-    (n,d) float64 aligned copy of uv.
-    """
-    A = np.asarray(uv, dtype=np.float64)
-    B = np.asarray(uv_true, dtype=np.float64)
-    if A.shape != B.shape:
-        raise ValueError(f"shape mismatch {A.shape} vs {B.shape}")
-    ma, mb = A.mean(axis=0), B.mean(axis=0)
-    U, _, Vt = np.linalg.svd((A - ma).T @ (B - mb))
-    return (A - ma) @ (U @ Vt) + mb
-
-
-def layout_error(uv: np.ndarray, uv_true: np.ndarray) -> float:
-    """Max vertex distance after :func:`rigid_align`, divided by the diameter of uv_true (scale-sensitive)."""
-    return float(np.linalg.norm(rigid_align(uv, uv_true) - uv_true, axis=1).max() / diameter(uv_true))
-
-
-def layout_rmse(uv: np.ndarray, uv_true: np.ndarray) -> float:
-    """Root-mean-square vertex distance after :func:`rigid_align`, divided by the diameter of uv_true."""
-    d2 = np.sum((rigid_align(uv, uv_true) - uv_true) ** 2, axis=1)
-    return float(np.sqrt(d2.mean()) / diameter(uv_true))
-
-
-rigid_align_error = layout_error
 
 
 def DEMO_SHAPE() -> Shape:  # noqa: N802 - a constant-like factory used by `heatparam demo`

@@ -57,7 +57,7 @@ def stages(report: dict) -> dict[str, str]:
 def run(outdir: Path, quiet: bool = False) -> tuple[object, dict]:
     """Generate the part, unwrap it, write :data:`OUTPUTS` into ``outdir`` (all or nothing). Returns the
     pipeline ``Result`` and the demo's summary (``report["demo"]``)."""
-    from heatparam import datasets
+    from heatparam import datasets, metrics
     from heatparam.pipeline import parameterize
     from heatparam.unwrap import plan, write_outputs
 
@@ -65,7 +65,7 @@ def run(outdir: Path, quiet: bool = False) -> tuple[object, dict]:
     result = parameterize(shape.V, shape.F, progress=not quiet)
     uv, report = result
     report["input"] = f"generated:{shape.name}"
-    report["metrics"]["layout_error_rel"] = datasets.layout_error(uv, shape.uv_true[result.uv_vertex])
+    report["metrics"]["layout_error_rel"] = metrics.layout_error(uv, shape.uv_true[result.uv_vertex])
     report["demo"] = {"surface": shape.name, "vertices": len(shape.V), "units": UNITS,
                       "noise": f"{NOISE:g} x mean edge, Gaussian, seed {SEED}", "stages": stages(report),
                       "outputs": list(OUTPUTS)}

@@ -40,9 +40,13 @@ __all__ = [
     "PerFaceDistortion",
     "boundary_crossings",
     "crossing_pairs",
+    "diameter",
     "distortion",
     "face_jacobian_singular_values",
+    "layout_error",
+    "layout_rmse",
     "per_face_distortion",
+    "rigid_align",
     "stress",
     "summary",
     "true_scale_iso",
@@ -607,3 +611,65 @@ def summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray | None
     out["inverted_loops"] = inverted_loops(uv_b, F_b)
     out["bijective"] = bool(out["flips"] == 0 and crossings == 0 and out["inverted_loops"] == 0)
     return out
+
+
+# ----------------------------------------------------------------------------------------------------------
+# layout error against a known flat layout
+# ----------------------------------------------------------------------------------------------------------
+
+
+def diameter(X: np.ndarray) -> float:
+    """Largest pairwise distance of the points X (n,d), via the convex hull (no n^2 memory)."""
+    X = np.asarray(X, dtype=np.float64)
+    if len(X) < 2:
+        return 0.0
+    c = X - X.mean(axis=0)
+    _, sv, Vt = np.linalg.svd(c, full_matrices=False)
+    rank = int(np.sum(sv > 1e-9 * max(sv[0], 1e-300)))
+    if rank == 0:
+        return 0.0
+    Y = c @ Vt[:rank].T  # coordinates in the affine span (planar points in 3D -> 2D)
+    if rank == 1:
+        return float(Y.max() - Y.min())
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        P = Y[ConvexHull(Y).vertices]
+    except QhullError:  # nearly degenerate: fall back to the extremes along the principal axis
+        return float(Y[:, 0].max() - Y[:, 0].min())
+    best = 0.0
+    for i in range(0, len(P), 512):
+        d = np.linalg.norm(P[i : i + 512, None, :] - P[None, :, :], axis=2)
+        best = max(best, float(d.max()))
+    return best
+
+
+def rigid_align(uv: np.ndarray, uv_true: np.ndarray) -> np.ndarray:
+    """Best rigid motion of uv onto uv_true (least squares; rotation, reflection, translation, NO scaling).
+
+    Parameters
+    ----------
+    uv, uv_true : (n,d) corresponding points.
+
+    Returns
+    -------
+    (n,d) float64 aligned copy of uv.
+    """
+    A = np.asarray(uv, dtype=np.float64)
+    B = np.asarray(uv_true, dtype=np.float64)
+    if A.shape != B.shape:
+        raise ValueError(f"shape mismatch {A.shape} vs {B.shape}")
+    ma, mb = A.mean(axis=0), B.mean(axis=0)
+    U, _, Vt = np.linalg.svd((A - ma).T @ (B - mb))
+    return (A - ma) @ (U @ Vt) + mb
+
+
+def layout_error(uv: np.ndarray, uv_true: np.ndarray) -> float:
+    """Max vertex distance after :func:`rigid_align`, divided by the diameter of uv_true (scale-sensitive)."""
+    return float(np.linalg.norm(rigid_align(uv, uv_true) - uv_true, axis=1).max() / diameter(uv_true))
+
+
+def layout_rmse(uv: np.ndarray, uv_true: np.ndarray) -> float:
+    """Root-mean-square vertex distance after :func:`rigid_align`, divided by the diameter of uv_true."""
+    d2 = np.sum((rigid_align(uv, uv_true) - uv_true) ** 2, axis=1)
+    return float(np.sqrt(d2.mean()) / diameter(uv_true))

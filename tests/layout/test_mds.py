@@ -82,7 +82,7 @@ def _rel_stress(X, D):
 
 
 def test_smacof_monotone_from_mds_on_developable_surface(cyl_geodesics):
-    from heatparam import datasets
+    from heatparam import metrics
 
     sh, D, X0 = cyl_geodesics
     X, info = smacof(X0, D, iters=300, tol=1e-9)
@@ -93,7 +93,7 @@ def test_smacof_monotone_from_mds_on_developable_surface(cyl_geodesics):
     assert info["stress_end"] == pytest.approx(_rel_stress(X, D), rel=1e-9)
     assert info["stress_end"] < 0.8 * info["stress_start"]  # MDS minimizes strain, not stress: room to gain
     # Lower stress against heat distances also means a layout closer to the true flat one here.
-    assert datasets.layout_error(X, sh.uv_true) < datasets.layout_error(X0, sh.uv_true)
+    assert metrics.layout_error(X, sh.uv_true) < metrics.layout_error(X0, sh.uv_true)
     assert np.allclose(X.mean(axis=0), 0, atol=1e-12)  # the constraint of Eq. 1
     X2, _ = smacof(X0, D, iters=300, tol=1e-9)
     assert np.array_equal(X, X2)  # deterministic
@@ -140,7 +140,7 @@ def test_smacof_landmarks_agrees_with_all_pairs_on_surface(cyl_geodesics):
     one, but both fit the same nearly-Euclidean heat distances of a developable patch: each lies within ~1% of
     the diameter of the true flat layout (heat-distance error), hence within 2% of each other. A wrong Schur
     solve or a missing half of B(Z) gives a layout off by tens of percent or a rising stress."""
-    from heatparam import datasets
+    from heatparam import metrics
 
     sh, D, X0 = cyl_geodesics
     lm = np.linspace(0, len(D) - 1, 30).astype(np.int64)
@@ -150,7 +150,7 @@ def test_smacof_landmarks_agrees_with_all_pairs_on_surface(cyl_geodesics):
     assert Xl.shape == (len(D), 2) and il["pattern"] == "landmarks" and il["pairs"] == len(D) * 30 - 30
     assert np.all(np.diff(il["history"]) <= 1e-12 * il["history"][0])
     assert il["stress_end"] < 0.8 * il["stress_start"]
-    diam = datasets.diameter(sh.uv_true)
+    diam = metrics.diameter(sh.uv_true)
     assert _procrustes_err(Xl, Xa) < 0.02 * diam
     assert _rel_stress(Xl, D) < _rel_stress(XL0, D)  # also lower on all pairs than its landmark-MDS start
 

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from heatparam import datasets, options
+from heatparam import datasets, metrics, options
 from heatparam.errors import HeatparamError
 from heatparam.pipeline import Options, parameterize
 
@@ -17,7 +17,7 @@ def test_convex_developable_patch_true_scale(cylinder):
     m = rep["metrics"]
     assert m["flips"] == 0 and m["boundary_crossings"] == 0
     assert m["iso_mean"] <= 1.10
-    err = datasets.layout_error(uv, cylinder.uv_true)  # rigid motion only: a wrong scale fails this
+    err = metrics.layout_error(uv, cylinder.uv_true)  # rigid motion only: a wrong scale fails this
     print(f"cylinder raw MDS: iso {m['iso_mean']:.4f}, layout error {err:.4f}, uv_scale {m['uv_scale']:.4f}")
     assert err <= 0.02
     assert rep["method"]["geodesics"] == "all-pairs"
@@ -40,9 +40,9 @@ def test_scale_invariance_default_vs_paper(cylinder):
         return uv
 
     uv1, uv2 = run(cylinder.V, "default"), run(1000 * cylinder.V, "default")
-    assert datasets.layout_error(uv2 / 1000, uv1) < 1e-6
+    assert metrics.layout_error(uv2 / 1000, uv1) < 1e-6
     p1, p2 = run(cylinder.V, "paper"), run(1000 * cylinder.V, "paper")
-    diff = datasets.layout_error(p2 / 1000, p1)
+    diff = metrics.layout_error(p2 / 1000, p1)
     print(f"paper time step: scaled-map difference {diff:.4f} of the diameter")
     assert diff > 1e-3
 
@@ -343,7 +343,7 @@ def test_seams_auto_leaves_near_isometric_parts_with_holes_uncut():
     h = parameterize(sh.V, sh.F, seams="holes")  # asked for: cut, and still an isometry (a developable part)
     assert h.seamed and h.report["metrics"]["bijective"] and h.report["metrics"]["iso_mean"] < 1.001
     assert h.report["method"]["fill"]["used"] is False and "seams" in h.report["method"]["fill"]["reason"]
-    assert datasets.layout_error(h.uv, sh.uv_true[h.uv_vertex]) < 1e-3
+    assert metrics.layout_error(h.uv, sh.uv_true[h.uv_vertex]) < 1e-3
 
 
 def _noisy_cylinder_with_holes(noise: float = 0.15, vertices: int | None = None):

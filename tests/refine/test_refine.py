@@ -140,7 +140,7 @@ def _check_isometric(shape):
     assert m["flips"] == 0
     assert m["boundary_crossings"] == 0
     assert m["iso_mean"] <= 1.001  # issue 5 acceptance
-    err = datasets.layout_error(uv, shape.uv_true)
+    err = metrics.layout_error(uv, shape.uv_true)
     assert err <= 1e-3  # issue 5 acceptance
     # regression guard: the polish reaches the generated meshes' discretization floor (measured 2.3e-5 to 3.8e-5);
     # a scaffold that is too stiff stopped at 2e-4 to 6e-4 while still passing the line above
@@ -215,9 +215,9 @@ def test_polish_backends_agree(backend):
     x_ref, info_ref = newton.polish(uv0, s.F, g, area, loops)
     x, info = newton.polish(uv0, s.F, g, area, loops, backend=backend)
     assert info["backend"] == backend and info["converged"]
-    assert datasets.layout_error(x, s.uv_true) <= 1e-4
+    assert metrics.layout_error(x, s.uv_true) <= 1e-4
     # the same map up to a rigid motion (a free-boundary map's rotation is fixed only by a 1e-9 regularization)
-    assert datasets.layout_error(x, x_ref) <= 1e-5
+    assert metrics.layout_error(x, x_ref) <= 1e-5
 
 
 @pytest.mark.parametrize("backend", ["pardiso", "cholespy", "scipy"])
@@ -453,7 +453,7 @@ def test_refine_survives_a_failing_lscm_candidate():
     uv_mds, _ = pipeline.parameterize(s.V, s.F, refine="none", fill="none")
     uv, rep = refine.refine(s.V, s.F, uv_mds, conformal=broken)
     assert rep["start"]["layout"] == "mds" and "conformal_failed" in rep["start"]
-    assert rep["bijective"] and datasets.layout_error(uv, s.uv_true) <= 1e-3
+    assert rep["bijective"] and metrics.layout_error(uv, s.uv_true) <= 1e-3
 
 
 # ---------------------------------------------------------------------------------------------- coarse-to-fine
@@ -820,7 +820,7 @@ def test_polish_keeps_guard_triangles_positive():
 
     free, _ = newton.polish(uv, F, g, area, loops)
     guarded, info = newton.polish(uv, F, g, area, loops, guards=ear)
-    assert ear_det(free) < 0 and datasets.layout_error(free, V[:, :2]) < 1e-4  # the isometry: the ear flipped
+    assert ear_det(free) < 0 and metrics.layout_error(free, V[:, :2]) < 1e-4  # the isometry: the ear flipped
     assert ear_det(guarded) > 0 and start.bijectivity(guarded, F, g) == (0, 0)
     assert info["energy_end"] > 1.0  # kept away from the isometry by the guard
 

@@ -67,20 +67,7 @@ def write_dxf(path: str | os.PathLike, pattern: Pattern, units: str = "mm", titl
     msp = doc.modelspace()
     th = text_height(pattern)
     uv = pattern.uv
-    n_holes = 0
-    for ch in pattern.charts:
-        for lp in ch.loops:
-            layer = "OUTLINE" if lp.kind == "outer" else "HOLES"
-            n_holes += lp.kind == "hole"
-            msp.add_lwpolyline(uv[lp.rows].tolist(), format="xy", close=True, dxfattribs={"layer": layer})
-        c = label_point(pattern, ch)
-        msp.add_text(f"C{ch.id}", height=2 * th, dxfattribs={"layer": "ANNOTATION"}).set_placement(
-            tuple(c), align=TextEntityAlignment.MIDDLE_CENTER)
-        lines = chart_summary(ch, units)
-        sh = summary_height(pattern, ch, lines, th)
-        for i, line in enumerate(lines):
-            msp.add_text(line, height=sh, dxfattribs={"layer": "ANNOTATION"}).set_placement(
-                (c[0], c[1] - 1.5 * th - 1.5 * i * sh), align=TextEntityAlignment.MIDDLE_CENTER)
+    n_holes = sum(_add_chart(msp, pattern, ch, units) for ch in pattern.charts)
     for s in pattern.seams:
         msp.add_lwpolyline(uv[s.rows].tolist(), format="xy", close=False, dxfattribs={"layer": "SEAMS"})
         msp.add_text(s.label, height=th, rotation=readable_angle(s.angle), dxfattribs={"layer": "SEAMS"}).set_placement(
@@ -101,6 +88,25 @@ def write_dxf(path: str | os.PathLike, pattern: Pattern, units: str = "mm", titl
         doc.saveas(os.fspath(path))
     return {"format": "dxf", "units": units, "charts": len(pattern.charts), "outlines": len(pattern.charts),
             "holes": n_holes, "seam_labels": len(pattern.seams), "sheets": len(pattern.sheets)}
+
+
+def _add_chart(msp, pattern: Pattern, ch, units: str) -> int:
+    """A chart's loops (OUTLINE, HOLES), its id and its distortion summary (ANNOTATION); returns its hole count."""
+    from ezdxf.enums import TextEntityAlignment
+
+    th = text_height(pattern)
+    for lp in ch.loops:
+        layer = "OUTLINE" if lp.kind == "outer" else "HOLES"
+        msp.add_lwpolyline(pattern.uv[lp.rows].tolist(), format="xy", close=True, dxfattribs={"layer": layer})
+    c = label_point(pattern, ch)
+    msp.add_text(f"C{ch.id}", height=2 * th, dxfattribs={"layer": "ANNOTATION"}).set_placement(
+        tuple(c), align=TextEntityAlignment.MIDDLE_CENTER)
+    lines = chart_summary(ch, units)
+    sh = summary_height(pattern, ch, lines, th)
+    for i, line in enumerate(lines):
+        msp.add_text(line, height=sh, dxfattribs={"layer": "ANNOTATION"}).set_placement(
+            (c[0], c[1] - 1.5 * th - 1.5 * i * sh), align=TextEntityAlignment.MIDDLE_CENTER)
+    return sum(lp.kind == "hole" for lp in ch.loops)
 
 
 @contextlib.contextmanager

@@ -19,14 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from heatparam.errors import HeatparamError
-
-#: extension → format name
-FORMATS = {
-    ".obj": "obj", ".ply": "ply", ".glb": "glb", ".dxf": "dxf", ".svg": "svg", ".step": "step", ".stp": "step",
-    ".json": "json", ".png": "png", ".npy": "npy",
-}
-#: formats ``unwrap -o`` writes
-MAP_FORMATS = ("obj", "ply", "glb", "dxf", "svg", "step")
+from heatparam.formats.exporters import EXPORTERS, by_suffix, map_formats
 
 
 @dataclass(frozen=True)
@@ -55,11 +48,11 @@ def file_mode() -> int:
 
 
 def _extensions(allowed: Collection[str]) -> str:
-    return ", ".join(sorted(e for e, f in FORMATS.items() if f in allowed))
+    return ", ".join(sorted(s for e in EXPORTERS if e.name in allowed for s in e.suffixes))
 
 
 def plan_outputs(paths: Sequence[str | os.PathLike | tuple[str | os.PathLike, Collection[str]]],
-                 inputs: Sequence[str | os.PathLike] = (), allowed: Collection[str] = MAP_FORMATS
+                 inputs: Sequence[str | os.PathLike] = (), allowed: Collection[str] | None = None
                  ) -> list[OutputPlan]:
     """Check output paths before any computation.
 
@@ -68,7 +61,7 @@ def plan_outputs(paths: Sequence[str | os.PathLike | tuple[str | os.PathLike, Co
     paths : output paths, each a path (its format must be in ``allowed``) or ``(path, formats)`` with its own
         allowed formats (e.g. ``(report, {"json"})``), all checked together so a name used twice is caught.
     inputs : files read by the run: none of them may be an output.
-    allowed : formats accepted for plain paths (default: what ``unwrap -o`` writes).
+    allowed : formats accepted for plain paths (default: what ``unwrap -o`` writes, ``exporters.map_formats``).
 
     Returns
     -------
@@ -80,6 +73,7 @@ def plan_outputs(paths: Sequence[str | os.PathLike | tuple[str | os.PathLike, Co
         One line naming the path and what is wrong: unknown extension, a folder, a missing folder, a folder in
         which no file can be created, an input file, or a name given twice.
     """
+    allowed = map_formats() if allowed is None else allowed
     plans: list[OutputPlan] = []
     seen: dict[Path, Path] = {}
     ins = {Path(i).resolve() for i in inputs if Path(i).exists()}
@@ -88,7 +82,8 @@ def plan_outputs(paths: Sequence[str | os.PathLike | tuple[str | os.PathLike, Co
         p = Path(raw)
         if p.is_dir():
             raise HeatparamError(f"output {p} is a folder — give a file name")
-        fmt = FORMATS.get(p.suffix.lower())
+        exporter = by_suffix(p.suffix)
+        fmt = exporter.name if exporter else None
         if fmt is None or fmt not in ok:
             raise HeatparamError(f"output {p}: unknown extension {p.suffix or '(none)'!r} (use {_extensions(ok)})")
         if p.exists() and not p.is_file():

@@ -245,9 +245,19 @@ def _pair_seams(seam_edges: list, uv: np.ndarray, uv_vertex: np.ndarray, orienta
     by_key: dict[int, list] = {}
     for e in seam_edges:
         by_key.setdefault(e[0], []).append(e)
+    sides = []
+    for n, chain in enumerate(_seam_curves(by_key, uv_vertex), start=1):
+        picked = _chain_sides(chain, by_key)
+        for side in range(2):
+            sides.append(_seam_side(f"S{n}", [pk[side] for pk in picked], uv, orientation))
+    return sides
+
+
+def _seam_curves(by_key: dict[int, list], uv_vertex: np.ndarray) -> list[list[int]]:
+    """The seam edges (keys of ``by_key``: their two half-edges) chained into curves: each chain runs through
+    vertices of seam degree 2 while the pair of charts on its sides stays the same."""
     keys = sorted(k for k, sides in by_key.items() if len(sides) == 2)  # a seam edge has exactly two sides
-    # 3D vertex graph of the seam edges
-    vert_edges: dict[int, list[int]] = {}
+    vert_edges: dict[int, list[int]] = {}  # 3D vertex → its seam edges
     for k in keys:
         a, b = (int(x) for x in sorted(uv_vertex[[by_key[k][0][2], by_key[k][0][3]]]))
         for v in (a, b):
@@ -267,7 +277,6 @@ def _pair_seams(seam_edges: list, uv: np.ndarray, uv_vertex: np.ndarray, orienta
             continue
         seen.add(k0)
         chain = [k0]
-        # extend both ways through vertices of seam degree 2 where the chart pair stays the same
         for direction in (0, 1):
             v = ends(k0)[direction]
             while len(vert_edges[v]) == 2:
@@ -282,31 +291,35 @@ def _pair_seams(seam_edges: list, uv: np.ndarray, uv_vertex: np.ndarray, orienta
                 a, b = ends(k)
                 v = b if a == v else a
         curves.append(chain)
-    sides = []
-    for n, chain in enumerate(curves, start=1):
-        label = f"S{n}"
-        # the two sides of each edge, continued along the chain: the side of the next edge that shares a uv row
-        # with this side's previous edge (both sides of an edge are in one chart or in two: ordering by chart is
-        # not enough for a seam inside one chart)
-        picked = [list(by_key[chain[0]])]
-        for k in chain[1:]:
-            e, f = by_key[k]
-            p0, p1 = picked[-1]
-            keep = {e[2], e[3]} & {p0[2], p0[3]} or {f[2], f[3]} & {p1[2], p1[3]}
-            swap = {f[2], f[3]} & {p0[2], p0[3]} or {e[2], e[3]} & {p1[2], p1[3]}
-            picked.append([f, e] if swap and not keep else [e, f])
-        mid = len(chain) // 2
-        for side in range(2):
-            edges = [pk[side] for pk in picked]
-            e_mid = edges[mid]
-            p, q = uv[e_mid[2]], uv[e_mid[3]]
-            d = q - p
-            # a boundary half-edge runs with the chart on its left (counter-clockwise faces); sign = orientation of
-            # the chart's faces in the plane, so a mirrored chart gets the right side too
-            left = np.array([-d[1], d[0]]) / (np.linalg.norm(d) or 1.0)
-            sides.append(SeamSide(label, int(e_mid[1]), _chain_rows([(e[2], e[3]) for e in edges]), (p + q) / 2,
-                                  float(np.degrees(np.arctan2(d[1], d[0]))), left * orientation[int(e_mid[1])]))
-    return sides
+    return curves
+
+
+def _chain_sides(chain: list[int], by_key: dict[int, list]) -> list[list]:
+    """The two half-edges of each edge of a chain, ordered so that position 0 (and 1) is one side all along.
+
+    The side of the next edge is the one that shares a uv row with this side's previous edge (both sides of an
+    edge are in one chart or in two: ordering by chart is not enough for a seam inside one chart).
+    """
+    picked = [list(by_key[chain[0]])]
+    for k in chain[1:]:
+        e, f = by_key[k]
+        p0, p1 = picked[-1]
+        keep = {e[2], e[3]} & {p0[2], p0[3]} or {f[2], f[3]} & {p1[2], p1[3]}
+        swap = {f[2], f[3]} & {p0[2], p0[3]} or {e[2], e[3]} & {p1[2], p1[3]}
+        picked.append([f, e] if swap and not keep else [e, f])
+    return picked
+
+
+def _seam_side(label: str, edges: list, uv: np.ndarray, orientation: dict) -> SeamSide:
+    """One side of a seam curve (its half-edges in curve order), labelled at its middle edge."""
+    e_mid = edges[len(edges) // 2]
+    p, q = uv[e_mid[2]], uv[e_mid[3]]
+    d = q - p
+    # a boundary half-edge runs with the chart on its left (counter-clockwise faces); sign = orientation of the
+    # chart's faces in the plane, so a mirrored chart gets the right side too
+    left = np.array([-d[1], d[0]]) / (np.linalg.norm(d) or 1.0)
+    return SeamSide(label, int(e_mid[1]), _chain_rows([(e[2], e[3]) for e in edges]), (p + q) / 2,
+                    float(np.degrees(np.arctan2(d[1], d[0]))), left * orientation[int(e_mid[1])])
 
 
 def _chain_rows(edges: list[tuple[int, int]]) -> np.ndarray:

@@ -192,6 +192,13 @@ def read_off(p: Path) -> tuple[np.ndarray, np.ndarray]:
     if fast is not None:
         return fast
     lines = _data_lines(text)
+    nv, nf = _off_counts(p, lines)
+    V = _off_vertices(p, lines, nv)
+    return V, _off_triangles(_off_faces(p, lines, nf))
+
+
+def _off_counts(p: Path, lines) -> tuple[int, int]:
+    """The vertex and face counts after the (optional) ``OFF`` header, read from the data ``lines``."""
     try:
         lineno, tok = next(lines)
     except StopIteration:
@@ -211,8 +218,11 @@ def read_off(p: Path) -> tuple[np.ndarray, np.ndarray]:
     counts = _ints(p, tok[:3], lineno, "count")
     if len(counts) < 2 or min(counts) < 0:
         raise _fail(p, "expected the vertex and face counts after the header", lineno)
-    nv, nf = counts[0], counts[1]
-    V = np.empty((0, 3))
+    return counts[0], counts[1]
+
+
+def _off_vertices(p: Path, lines, nv: int) -> np.ndarray:
+    """The next ``nv`` vertex lines as V (nv,3) float64."""
     rows: list[list[float]] = []
     for k, (lineno, tok) in enumerate(lines):
         if len(tok) < 3:
@@ -226,7 +236,11 @@ def read_off(p: Path) -> tuple[np.ndarray, np.ndarray]:
             break
     if len(rows) < nv:
         raise _fail(p, f"the file ends after {len(rows)} of the {nv} vertices its header announces")
-    V = np.asarray(rows, dtype=np.float64).reshape(-1, 3)
+    return np.asarray(rows, dtype=np.float64).reshape(-1, 3)
+
+
+def _off_faces(p: Path, lines, nf: int) -> list[list[int]]:
+    """The next ``nf`` face lines as lists of vertex indices (polygons)."""
     polys: list[list[int]] = []
     done = 0
     for lineno, tok in lines if nf else ():
@@ -242,7 +256,7 @@ def read_off(p: Path) -> tuple[np.ndarray, np.ndarray]:
             break
     if done < nf:
         raise _fail(p, f"the file ends after {done} of the {nf} faces its header announces")
-    return V, _off_triangles(polys)
+    return polys
 
 
 def _off_fast(text: str) -> tuple[np.ndarray, np.ndarray] | None:

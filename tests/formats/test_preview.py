@@ -12,7 +12,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from heatparam import datasets, metrics, render  # noqa: E402
+from heatparam import datasets, metrics  # noqa: E402
+from heatparam.formats import preview  # noqa: E402
 from heatparam.mesh import cut_open, hole_seams, loops_outer_first  # noqa: E402
 
 
@@ -46,7 +47,7 @@ def _nonblank(img: np.ndarray) -> None:
 
 def test_preview_one_chart(tmp_path, part):
     p = tmp_path / "one.png"
-    render.save_preview(p, part.V, part.F, part.uv_true, title="part", units="mm")
+    preview.save_preview(p, part.V, part.F, part.uv_true, title="part", units="mm")
     img = _png(p)
     _nonblank(img)
     assert img.shape[1] > 1.6 * img.shape[0]  # two panels side by side
@@ -56,66 +57,66 @@ def test_preview_charts_and_seams(tmp_path, part, cut):
     Vs, Fs, uv, src, _ = cut
     chart = (uv[Fs].mean(axis=1)[:, 0] > 0).astype(np.int64)  # two charts: left and right half
     one, two = tmp_path / "seams.png", tmp_path / "charts.png"
-    render.save_preview(one, Vs, Fs, uv, vertex=src)
-    render.save_preview(two, Vs, Fs, uv, chart=chart, vertex=src)
+    preview.save_preview(one, Vs, Fs, uv, vertex=src)
+    preview.save_preview(two, Vs, Fs, uv, chart=chart, vertex=src)
     a, b = _png(one), _png(two)
     _nonblank(b)
     assert b.shape[1] > 1.3 * a.shape[1]  # a third panel: the layout by chart
     # seams are drawn in their colour on the figure
-    seam_rgb = np.array(matplotlib.colors.to_rgb(render.SEAM_COLOR))
+    seam_rgb = np.array(matplotlib.colors.to_rgb(preview.SEAM_COLOR))
     assert (np.abs(a[..., :3] - seam_rgb).max(axis=2) < 0.08).sum() > 50
     with pytest.raises(ValueError, match="chart"):
-        render.save_preview(tmp_path / "bad.png", Vs, Fs, uv, chart=chart[:-1])
+        preview.save_preview(tmp_path / "bad.png", Vs, Fs, uv, chart=chart[:-1])
 
 
 def test_map_edges_splits_border_holes_and_seams(part, cut):
     Vs, Fs, _, src, paths = cut
     for vertex in (src, None):  # given, or welded by 3D position
-        e = render.map_edges(Vs, Fs, vertex)
+        e = preview.map_edges(Vs, Fs, vertex)
         assert e.n_holes == 2 and e.n_seams == len(paths) == 2
         assert len(e.seams) == 2 * sum(len(p) - 1 for p in paths)  # each cut edge, once per side
         assert len(e.outline) + len(e.holes) == len(metrics.boundary_edges(part.F))
-    e = render.map_edges(part.V, part.F)  # uncut: no seams
+    e = preview.map_edges(part.V, part.F)  # uncut: no seams
     assert e.n_seams == 0 and len(e.seams) == 0 and e.n_holes == 2
-    assert render.count_charts(Fs, len(Vs)) == 1
+    assert preview.count_charts(Fs, len(Vs)) == 1
 
 
 def test_colour_range_follows_the_data(part):
     iso = np.concatenate([np.linspace(1.0, 3.0, 1000), [np.inf]])
     flipped = np.zeros(len(iso), dtype=bool)
-    assert render.distortion_range(iso, flipped) == pytest.approx(np.percentile(iso[:-1], 99))
-    assert render.distortion_range(np.full(10, 1.001)) == render.VMAX_FLOOR
+    assert preview.distortion_range(iso, flipped) == pytest.approx(np.percentile(iso[:-1], 99))
+    assert preview.distortion_range(np.full(10, 1.001)) == preview.VMAX_FLOOR
     flipped[-100:] = True  # flipped faces (the inf and the 99 highest) do not set the scale
-    assert render.distortion_range(iso, flipped) == pytest.approx(np.percentile(iso[:-100], 99))
+    assert preview.distortion_range(iso, flipped) == pytest.approx(np.percentile(iso[:-100], 99))
     # drawn: an isometric map gets the floor, a stretched one a colour bar up to its own distortion
     tops = []
     for sx in (1.0, 1.5):
         uv = part.uv_true * [sx, 1.0]
         pf = metrics.per_face_distortion(part.V, part.F, uv)
         fig, ax = plt.subplots()
-        vmax = render.draw_layout(ax, part.F, uv, pf.iso, pf.flipped, units="mm")
+        vmax = preview.draw_layout(ax, part.F, uv, pf.iso, pf.flipped, units="mm")
         assert fig.axes[-1].get_ylim()[1] == pytest.approx(vmax)  # the colour bar's top
         plt.close(fig)
         tops.append(vmax)
-    assert tops[0] == render.VMAX_FLOOR
+    assert tops[0] == preview.VMAX_FLOOR
     assert 1.2 < tops[1] < 1.6 and tops[1] != 2.0
 
 
 def test_scale_bar_and_checker_sizes_are_round():
-    assert render.nice_length(37.0) == 20.0 and render.nice_length(0.07) == pytest.approx(0.05)
-    assert render.nice_length(10.0) == 10.0 and render.nice_length(99.0) == 50.0
+    assert preview.nice_length(37.0) == 20.0 and preview.nice_length(0.07) == pytest.approx(0.05)
+    assert preview.nice_length(10.0) == 10.0 and preview.nice_length(99.0) == 50.0
 
 
 def test_headline_numbers():
-    text = render.headline({"iso_mean": 1.23456, "iso_p95": 1.5, "flips": 0, "boundary_crossings": 2}, 3, None)
+    text = preview.headline({"iso_mean": 1.23456, "iso_p95": 1.5, "flips": 0, "boundary_crossings": 2}, 3, None)
     for s in ("iso mean 1.2346", "p95 1.5000", "flipped 0", "boundary crossings 2", "charts 3"):
         assert s in text
 
 
 def test_chart_colours_are_distinct_and_avoid_line_colours():
-    c = render.chart_colors(np.array([5, 5, 9, 2, 9]))
+    c = preview.chart_colors(np.array([5, 5, 9, 2, 9]))
     assert np.array_equal(c[0], c[1]) and np.array_equal(c[2], c[4])
     assert len({tuple(x) for x in c}) == 3
-    lines = [matplotlib.colors.to_rgb(x) for x in (render.SEAM_COLOR, render.HOLE_COLOR, render.FLIP_COLOR)]
-    palette = render.chart_colors(np.arange(14))
+    lines = [matplotlib.colors.to_rgb(x) for x in (preview.SEAM_COLOR, preview.HOLE_COLOR, preview.FLIP_COLOR)]
+    palette = preview.chart_colors(np.arange(14))
     assert min(np.abs(palette - np.array(x)).max(axis=1).min() for x in lines) > 0.15

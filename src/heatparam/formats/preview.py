@@ -222,7 +222,7 @@ def _scale_bar(ax, units: str | None) -> None:
                                   sep=4, frameon=True, size_vertical=0, fontproperties={"size": 9}))
 
 
-def draw_layout(ax, F: np.ndarray, uv: np.ndarray, iso: np.ndarray, flipped: np.ndarray, vmax: float | None = None,
+def draw_layout(ax, F: np.ndarray, uv: np.ndarray, iso: np.ndarray, flipped: np.ndarray, *, vmax: float | None = None,
                 title: str = "", units: str | None = None, edges: MapEdges | None = None,
                 legend: bool = True) -> float:
     """UV triangles coloured by isometric distortion (1 = isometric) up to ``vmax`` (None:
@@ -268,7 +268,7 @@ def draw_layout(ax, F: np.ndarray, uv: np.ndarray, iso: np.ndarray, flipped: np.
     return vmax
 
 
-def draw_charts(ax, F: np.ndarray, uv: np.ndarray, chart: np.ndarray, units: str | None = None,
+def draw_charts(ax, F: np.ndarray, uv: np.ndarray, chart: np.ndarray, *, units: str | None = None,
                 edges: MapEdges | None = None, title: str = "") -> None:
     """UV triangles in one colour per chart (``chart`` (m,) ids), ``edges`` over them, a scale bar."""
     from matplotlib.collections import PolyCollection
@@ -296,7 +296,7 @@ def _cmap():
     return matplotlib.colormaps["viridis"]
 
 
-def draw_checker_3d(ax, V: np.ndarray, F: np.ndarray, uv: np.ndarray, cells: int = 16, title: str = "",
+def draw_checker_3d(ax, V: np.ndarray, F: np.ndarray, uv: np.ndarray, *, cells: int = 16, title: str = "",
                     chart: np.ndarray | None = None, edges: MapEdges | None = None, units: str | None = None) -> None:
     """The 3D mesh in an orthographic view along its thinnest principal axis, a checkerboard of round-sized
     squares (model units) through the map; faces tinted by ``chart`` (m,) when given; ``edges`` (outline,
@@ -326,7 +326,7 @@ def draw_checker_3d(ax, V: np.ndarray, F: np.ndarray, uv: np.ndarray, cells: int
         base = np.where(checker[:, None] > 0, tint, 0.55 * tint)
     else:
         base = np.where(checker[:, None] > 0, [CHECKER_LIGHT], [CHECKER_DARK])
-    _draw_shaded(ax, V, F, base, frame, edges=False)
+    _draw_shaded(ax, V, F, base, frame=frame, edges=False)
     if edges is not None:
         c, Wt = frame
         P0 = (V0 - c) @ Wt.T
@@ -348,7 +348,7 @@ def headline(metrics: dict, charts: int, edges: MapEdges | None) -> str:
     return "   ·   ".join(parts)
 
 
-def save_preview(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.ndarray, title: str = "",
+def save_preview(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.ndarray, *, title: str = "",
                  fill_surface=None, units: str | None = "mm", chart: np.ndarray | None = None,
                  metrics: dict | None = None, vertex: np.ndarray | None = None) -> None:
     """Write the preview PNG atomically.
@@ -374,13 +374,7 @@ def save_preview(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.n
     from heatparam import metrics as mt
     from heatparam.formats.files import atomic_write
 
-    V = np.asarray(V, dtype=np.float64)
-    F = np.asarray(F, dtype=np.int64)
-    uv = np.asarray(uv, dtype=np.float64)
-    if chart is not None:
-        chart = np.asarray(chart).reshape(-1)
-        if len(chart) != len(F):
-            raise ValueError(f"chart has {len(chart)} ids for {len(F)} faces")
+    V, F, uv, chart = _checked(V, F, uv, chart)
     pf = mt.per_face_distortion(V, F, uv)
     if metrics is None:
         metrics = mt.summary(V, F, uv)
@@ -398,21 +392,38 @@ def save_preview(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.n
         k = 2
     draw_checker_3d(axes[k], V, F, uv, chart=chart if show_charts else None, edges=edges, units=units)
     if fill_surface is not None:
-        from matplotlib.collections import PolyCollection
-
-        fs = fill_surface
-        draw_fill_overlay(axes[k + 1], V, F, fs.V, fs.F, f"fill surface M* ({fs.method}, {len(fs.V)} vertices) "
-                          "with M over it")
-        ax = axes[k + 2]
-        ax.add_collection(PolyCollection(fs.uv[fs.F], facecolors=(0.8, 0.8, 0.8), edgecolors=(0.6, 0.6, 0.6),
-                                         linewidths=0.1))
-        ax.add_collection(PolyCollection(fs.uv_points[F], facecolors=(0.35, 0.5, 0.85, 0.7), edgecolors="none"))
-        ax.set_aspect("equal")
-        ax.autoscale_view()
-        ax.set_title("MDS layout of M* (grey) and its trim to M (blue), before refinement", fontsize=10)
+        _draw_fill_panels(axes[k + 1 : k + 3], V, F, fill_surface)
     with atomic_write(path, "wb") as fh:
         fig.savefig(fh, format="png")
     plt.close(fig)
+
+
+def _checked(V, F, uv, chart) -> tuple:
+    """The preview's arrays as float64 / int64, ``chart`` flattened; ValueError when it has not one id per face."""
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    uv = np.asarray(uv, dtype=np.float64)
+    if chart is not None:
+        chart = np.asarray(chart).reshape(-1)
+        if len(chart) != len(F):
+            raise ValueError(f"chart has {len(chart)} ids for {len(F)} faces")
+    return V, F, uv, chart
+
+
+def _draw_fill_panels(axes, V: np.ndarray, F: np.ndarray, fs) -> None:
+    """The fill surface M* with M over it (Figure 7), and M*'s MDS layout with M's trimmed layout (Figure 9)."""
+    from matplotlib.collections import PolyCollection
+
+    ax_surface, ax_layout = axes
+    draw_fill_overlay(ax_surface, V, F, fs.V, fs.F, title=f"fill surface M* ({fs.method}, {len(fs.V)} vertices) "
+                      "with M over it")
+    ax_layout.add_collection(PolyCollection(fs.uv[fs.F], facecolors=(0.8, 0.8, 0.8), edgecolors=(0.6, 0.6, 0.6),
+                                            linewidths=0.1))
+    ax_layout.add_collection(PolyCollection(fs.uv_points[F], facecolors=(0.35, 0.5, 0.85, 0.7),
+                                            edgecolors="none"))
+    ax_layout.set_aspect("equal")
+    ax_layout.autoscale_view()
+    ax_layout.set_title("MDS layout of M* (grey) and its trim to M (blue), before refinement", fontsize=10)
 
 
 def _principal_frame(V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -422,7 +433,7 @@ def _principal_frame(V: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return c, Wt
 
 
-def _draw_shaded(ax, V: np.ndarray, F: np.ndarray, base: np.ndarray, frame, edges: bool) -> None:
+def _draw_shaded(ax, V: np.ndarray, F: np.ndarray, base: np.ndarray, *, frame, edges: bool) -> None:
     """Orthographic view of (V, F) in ``frame`` = (centre, axes): faces in ``base`` colours (m,3) times a
     Lambert shade, far faces first (painter's algorithm)."""
     from matplotlib.collections import PolyCollection
@@ -441,7 +452,7 @@ def _draw_shaded(ax, V: np.ndarray, F: np.ndarray, base: np.ndarray, frame, edge
     ax.set_axis_off()
 
 
-def draw_fill_overlay(ax, V: np.ndarray, F: np.ndarray, Vs: np.ndarray, Fs: np.ndarray, title: str) -> None:
+def draw_fill_overlay(ax, V: np.ndarray, F: np.ndarray, Vs: np.ndarray, Fs: np.ndarray, *, title: str) -> None:
     """The fill surface M* (grey) with M drawn over it (translucent blue), in M's principal frame (Figure 7b)."""
     from matplotlib.collections import PolyCollection
 
@@ -454,30 +465,30 @@ def draw_fill_overlay(ax, V: np.ndarray, F: np.ndarray, Vs: np.ndarray, Fs: np.n
     ax.set_title(title, fontsize=10)
 
 
-def draw_surface_3d(ax, V: np.ndarray, F: np.ndarray, color=(0.75, 0.75, 0.8), frame=None, edges: bool = False,
+def draw_surface_3d(ax, V: np.ndarray, F: np.ndarray, *, color=(0.75, 0.75, 0.8), frame=None, edges: bool = False,
                     title: str = "") -> None:
     """Shaded orthographic view of (V, F) in ``frame`` = (centre, axes) (default: V's principal frame)."""
     base = np.broadcast_to(np.asarray(color, dtype=float), (len(F), 3))
-    _draw_shaded(ax, V, F, base, frame if frame is not None else _principal_frame(V), edges)
+    _draw_shaded(ax, V, F, base, frame=frame if frame is not None else _principal_frame(V), edges=edges)
     if title:
         ax.set_title(title, fontsize=10)
 
 
-def save_fill_figure(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, Vs: np.ndarray, Fs: np.ndarray,
+def save_fill_figure(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, Vs: np.ndarray, Fs: np.ndarray, *,
                      title: str = "") -> None:
     """Paper Figure 7: (a) the mesh M, (b) the fill surface M* (grey) with M drawn over it (blue), one view."""
     from heatparam.formats.files import atomic_write
 
     plt, fig, axes = _figure(2)
     draw_surface_3d(axes[0], V, F, color=(0.35, 0.5, 0.85), frame=_principal_frame(V), title=f"{title} — (a) mesh M")
-    draw_fill_overlay(axes[1], V, F, Vs, Fs, f"(b) fill surface M* ({len(Vs)} vertices) with M over it")
+    draw_fill_overlay(axes[1], V, F, Vs, Fs, title=f"(b) fill surface M* ({len(Vs)} vertices) with M over it")
     with atomic_write(path, "wb") as fh:
         fig.savefig(fh, format="png", dpi=64)
     plt.close(fig)
 
 
 def save_fill_comparison(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv_without: np.ndarray,
-                         uv_with: np.ndarray, labels: tuple[str, str] = ("without fill", "with fill"),
+                         uv_with: np.ndarray, *, labels: tuple[str, str] = ("without fill", "with fill"),
                          title: str = "") -> None:
     """Paper Figures 10/12: checkerboard on M and the UV layout, without (top) and with (bottom) the fill."""
     import matplotlib
