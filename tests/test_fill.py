@@ -165,7 +165,20 @@ def test_auto_depth_is_scale_free(s_strip):
     info = validate_mesh(s_strip.V, s_strip.F)
     big = datasets.scale_shape(s_strip, 100.0)
     assert fill.auto_depth(info) == fill.auto_depth(validate_mesh(big.V, big.F))
-    assert fill.MIN_DEPTH <= fill.auto_depth(info) <= fill.MAX_DEPTH
+
+
+def test_auto_depth_makes_a_cell_of_about_half_a_mean_edge(s_strip):
+    """The coarsest depth whose octree cell (PoissonRecon's cube, ~1.1 × the diameter, over 2^depth) is at most
+    CELL_PER_EDGE × the mean edge; clamped to MIN_DEPTH..MAX_DEPTH on very coarse and very fine meshes."""
+    from types import SimpleNamespace
+
+    info = validate_mesh(s_strip.V, s_strip.F)
+    depth = fill.auto_depth(info)
+    assert depth == 8  # diameter 2.41, mean edge 0.031: a cell of 0.34 mean edges
+    cell = 1.1 * info.diameter / 2**depth
+    assert 0.5 * fill.CELL_PER_EDGE * info.mean_edge < cell <= fill.CELL_PER_EDGE * info.mean_edge
+    assert fill.auto_depth(SimpleNamespace(diameter=1.0, mean_edge=0.5)) == fill.MIN_DEPTH  # unclamped: 3
+    assert fill.auto_depth(SimpleNamespace(diameter=1.0, mean_edge=1e-4)) == fill.MAX_DEPTH  # unclamped: 15
 
 
 # ----------------------------------------------------------------------------------------------------------

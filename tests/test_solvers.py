@@ -145,7 +145,7 @@ def test_pardiso_two_level_factorization_for_large_systems_it_orders_itself():
     assert np.linalg.norm(A2 @ f.solve(b) - b) <= 1e-10 * np.linalg.norm(b)
     assert Factor(A, "pardiso", ordering=f.ordering)._f.iparm[23] == 0
     assert Factor(_grid_laplacian(40), "pardiso")._f.iparm[23] == 0
-    # a new pattern of a large system: METIS orders it anew and the factor stays two-level (REORDER_TWO_LEVEL),
+    # a new pattern of a large system: METIS orders it anew and the factor stays two-level,
     # instead of the last permutation given (which would mean the classic algorithm)
     near = sp.coo_matrix(([-0.1, -0.1, 0.2, 0.2], ([0, k + 1, 0, k + 1], [k + 1, 0, 0, k + 1])), shape=A.shape)
     A3 = (A2 + near).tocsc()

@@ -228,40 +228,10 @@ def mesh_domain(
     interior = cand[_dist_to_segments(cand, A, B) > min_boundary_distance * h]
 
     for _ in range(max_refine + 1):
-        sizes = [len(lp) for lp in loops]
-        starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-        bpts = np.vstack(loops)
-        pts = np.vstack([bpts, interior])
-        tri = Delaunay(pts)
-        if len(tri.coplanar):
-            raise RuntimeError("Delaunay dropped coincident/coplanar input points")
-        T = tri.simplices.astype(np.int64)
-        sa = signed_areas(pts, T)
-        T[sa < 0] = T[sa < 0][:, [0, 2, 1]]
-        keep = np.abs(sa) > 1e-10 * h * h
-        T = T[keep]
-        T = T[_inside(pts[T].mean(axis=1), loops)]
-        # which boundary segments are mesh edges?
-        n = len(pts)
-        E = np.vstack([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]])
-        ekeys = set((np.minimum(E[:, 0], E[:, 1]) * n + np.maximum(E[:, 0], E[:, 1])).tolist())
-        new_loops, missing = [], 0
-        for lp, s in zip(loops, starts, strict=True):
-            i = s + np.arange(len(lp))
-            j = s + (np.arange(len(lp)) + 1) % len(lp)
-            k = np.minimum(i, j) * n + np.maximum(i, j)
-            ok = np.fromiter((kk in ekeys for kk in k.tolist()), dtype=bool, count=len(k))
-            missing += int((~ok).sum())
-            if ok.all():
-                new_loops.append(lp)
-                continue
-            mids = 0.5 * (lp + np.roll(lp, -1, axis=0))
-            out = [lp[:, None, :], np.where(~ok[:, None], mids, np.nan)[:, None, :]]
-            merged = np.concatenate(out, axis=1).reshape(-1, 2)
-            new_loops.append(merged[~np.isnan(merged[:, 0])])
+        pts, T = _constrained_candidates(loops, interior, h)
+        loops, missing = _split_missing_segments(loops, T, len(pts))
         if missing == 0:
             break
-        loops = new_loops
     else:
         raise RuntimeError("could not recover all boundary segments as Delaunay edges")
 
@@ -271,6 +241,46 @@ def mesh_domain(
     uv, F = pts[used], remap[T]
     _check_manifold(F, len(uv))
     return uv, F
+
+
+def _constrained_candidates(loops: list[np.ndarray], interior: np.ndarray, h: float
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """Delaunay triangles of the loops' samples then the interior points (pts), counter-clockwise, without
+    slivers and inside the domain: (pts, T)."""
+    pts = np.vstack([np.vstack(loops), interior])
+    tri = Delaunay(pts)
+    if len(tri.coplanar):
+        raise RuntimeError("Delaunay dropped coincident/coplanar input points")
+    T = tri.simplices.astype(np.int64)
+    sa = signed_areas(pts, T)
+    T[sa < 0] = T[sa < 0][:, [0, 2, 1]]
+    keep = np.abs(sa) > 1e-10 * h * h
+    T = T[keep]
+    return pts, T[_inside(pts[T].mean(axis=1), loops)]
+
+
+def _split_missing_segments(loops: list[np.ndarray], T: np.ndarray, n: int) -> tuple[list[np.ndarray], int]:
+    """The loops with a midpoint inserted into every segment that is not an edge of T (loop samples numbered
+    first, n points in all), and the number of such segments."""
+    sizes = [len(lp) for lp in loops]
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    E = np.vstack([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]])
+    ekeys = set((np.minimum(E[:, 0], E[:, 1]) * n + np.maximum(E[:, 0], E[:, 1])).tolist())
+    new_loops, missing = [], 0
+    for lp, s in zip(loops, starts, strict=True):
+        i = s + np.arange(len(lp))
+        j = s + (np.arange(len(lp)) + 1) % len(lp)
+        k = np.minimum(i, j) * n + np.maximum(i, j)
+        ok = np.fromiter((kk in ekeys for kk in k.tolist()), dtype=bool, count=len(k))
+        missing += int((~ok).sum())
+        if ok.all():
+            new_loops.append(lp)
+            continue
+        mids = 0.5 * (lp + np.roll(lp, -1, axis=0))
+        out = [lp[:, None, :], np.where(~ok[:, None], mids, np.nan)[:, None, :]]
+        merged = np.concatenate(out, axis=1).reshape(-1, 2)
+        new_loops.append(merged[~np.isnan(merged[:, 0])])
+    return new_loops, missing
 
 
 def _check_manifold(F: np.ndarray, n: int) -> None:
@@ -531,10 +541,9 @@ def noisy_scan_part(scale: float = 100.0, noise: float = 0.1, h: float = 0.03, s
     model units per unit (default: a 100 mm radius, a 240 × 180 mm flat pattern), with scanner noise.
 
     Every coordinate gets Gaussian noise of ``noise`` × the mean edge length (seeded by ``seed``: deterministic).
-    The noise pulls a conformal layout away from an isometry, so the heat stage runs (it is not skipped): with
-    LSCM's two pins the MDS layout started the refinement (start energy 1.0045 against LSCM's 1.0605,
-    ``BENCHMARKS.md`` §8); the spectral conformal map without pins has 1.0029 against MDS's 1.0066 and starts it
-    (§13). Defaults: 4806 vertices, 9197 faces, one outer loop and two hole loops.
+    The noise pulls a conformal layout away from an isometry, so the heat stage runs (it is not skipped) and its
+    MDS layout competes as the refinement's start (start energy 1.0066; the spectral conformal map's 1.0029 wins).
+    Defaults: 4806 vertices, 9197 faces, one outer loop and two hole loops.
 
     Returns
     -------
@@ -552,7 +561,7 @@ def noisy_scan_part(scale: float = 100.0, noise: float = 0.1, h: float = 0.03, s
     return Shape(V, F, uv, "noisy_scan_part")
 
 
-# closed shapes for atlases (issue 14): (V, F) with outward-facing triangles, one welded closed surface; each
+# closed shapes for atlases: (V, F) with outward-facing triangles, one welded closed surface; each
 # unfolds to a few charts at exact isometry (the cube to a net, the cylinder and the cone to their sides and caps)
 def _weld(parts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
     """Concatenate (P, T) pieces, weld coincident points (rounded to 1e-9 of the extent), drop collapsed faces."""

@@ -3,8 +3,7 @@
 The part (:func:`heatparam.datasets.noisy_scan_part`) is a cylinder patch with two holes, in mm, with
 scanner noise of 0.1 × the mean edge length: the conformal layout is not near-isometric there, so the paper's
 pipeline (fill, heat geodesics, MDS) runs and its layout competes with the conformal one as the refinement's start
-(since the conformal layout is the spectral map without pins, 2026-12-02, it wins here: energy 1.0029 against
-MDS's 1.0066; with LSCM's two pins it had 1.0605 and MDS started; ``BENCHMARKS.md`` §8, §13).
+(the spectral conformal map wins here: energy 1.0029 against MDS's 1.0066).
 """
 
 from __future__ import annotations

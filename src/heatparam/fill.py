@@ -122,7 +122,7 @@ def concavity(uv: np.ndarray, F: np.ndarray) -> float:
 
 def needs_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo,
                conformal: Callable[[], np.ndarray] | None = None) -> tuple[bool, str]:
-    """Whether M needs a fill surface M* (§2.5): it has holes, or its border is concave.
+    """Whether M needs a fill surface M*: it has holes, or its border is concave.
 
     Concavity is measured on the provisional layout (:func:`provisional_layout`): convex-hull area / area
     above :data:`CONCAVITY_THRESHOLD`. Returns (decision, reason), the reason a short line for the report.
@@ -315,7 +315,7 @@ PLANAR_TOL = 1e-6
 
 def poisson_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo, seed: int = 0, depth: int = 0,
                  remesh: bool = True, conformal: Callable[[], np.ndarray] | None = None) -> FillResult:
-    """The paper's fill (§2.5): screened Poisson surface M* of M's oriented samples (Eq. 15-16), trimmed.
+    """The paper's fill: screened Poisson surface M* of M's oriented samples (Eq. 15-16), trimmed.
 
     Parameters
     ----------
@@ -550,49 +550,17 @@ def biharmonic_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo,
 
     Parameters and returns as :func:`poisson_fill` (no depth: nothing is reconstructed).
     """
-    import gpytoolbox as gpy
-
     t0 = time.perf_counter()
     n = len(V)
     uv = provisional_layout(V, F, info, conformal)
     h = info.mean_edge
-    Tall = [F]
-    Lall = [gpy.halfedge_lengths_squared(V, F)]  # M's own triangles: their 3D lengths
-    count = n
-    skipped = replanned = 0
-    for ids, poly in _gap_polygons(uv, info.boundary_loops, h, info.diameter):
-        try:
-            P2, T = _triangulate_region(poly, h)
-        except (ValueError, HeatparamError):  # the outline self-intersects in the provisional layout
-            try:
-                P2, T = _triangulate_region(_plane_frame(ids, poly, V), h)
-                replanned += 1
-            except (ValueError, HeatparamError):
-                skipped += 1
-                continue
-        T = _orient_gap(T, P2, ids, F)
-        gid = np.empty(len(P2), dtype=np.int64)
-        k = len(poly)
-        on = ids >= 0
-        gid[:k][on] = ids[on]
-        new = np.r_[np.flatnonzero(~on), np.arange(k, len(P2))]
-        gid[new] = count + np.arange(len(new))
-        count += len(new)
-        Tall.append(gid[T])
-        Lall.append(gpy.halfedge_lengths_squared(P2, T))  # gap triangles: lengths in the frame they were made in
-    Fs = np.vstack(Tall)
+    Fs, L, count, skipped, replanned = _gap_mesh(V, F, uv, info, h)
     fixed = np.zeros(count, dtype=bool)
     fixed[:n] = True
     X = np.zeros((count, 3))
     X[:n] = V
-    Vs = _bilaplacian_extend(X, np.vstack(Lall), Fs, fixed)
-    face = np.empty(n, dtype=np.int64)
-    bary = np.zeros((n, 3))
-    # Each vertex of M is a corner of one of M's faces (kept as faces 0..m-1 of M*).
-    for c in range(3):
-        face[F[:, c]] = np.arange(len(F))
-    corner = np.argmax(F[face] == np.arange(n)[:, None], axis=1)
-    bary[np.arange(n), corner] = 1.0
+    Vs = _bilaplacian_extend(X, L, Fs, fixed)
+    face, bary = _own_corners(F, n)
     res = _result(V, F, info, Vs, Fs, face, bary, np.zeros(n), t0, {
         "method": "biharmonic",
         "gaps_skipped": skipped,
@@ -607,3 +575,58 @@ def biharmonic_fill(V: np.ndarray, F: np.ndarray, info: MeshInfo,
         res.warnings.append(f"{skipped} gap(s) of the fill could not be triangulated (their outline self-intersects "
                             "in the provisional layout) and were left open")
     return res
+
+
+def _triangulated_gap(ids: np.ndarray, poly: np.ndarray, V: np.ndarray, h: float
+                      ) -> tuple[np.ndarray, np.ndarray, bool] | None:
+    """A gap's outline triangulated in the provisional layout, or else in the best-fit plane of its 3D outline:
+    (points (p,2), triangles, whether in that plane); None where both self-intersect."""
+    try:
+        return (*_triangulate_region(poly, h), False)
+    except (ValueError, HeatparamError):  # the outline self-intersects in the provisional layout
+        try:
+            return (*_triangulate_region(_plane_frame(ids, poly, V), h), True)
+        except (ValueError, HeatparamError):
+            return None
+
+
+def _gap_mesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, info: MeshInfo, h: float
+              ) -> tuple[np.ndarray, np.ndarray, int, int, int]:
+    """M's triangles followed by its gaps' (the gaps' new vertices numbered from n on): (faces, their squared
+    half-edge lengths (M's triangles: their 3D lengths; the gaps': in the frame they were made in), vertex count,
+    gaps skipped, gaps triangulated in their own plane)."""
+    import gpytoolbox as gpy
+
+    Tall = [F]
+    Lall = [gpy.halfedge_lengths_squared(V, F)]
+    count = len(V)
+    skipped = replanned = 0
+    for ids, poly in _gap_polygons(uv, info.boundary_loops, h, info.diameter):
+        gap = _triangulated_gap(ids, poly, V, h)
+        if gap is None:
+            skipped += 1
+            continue
+        P2, T, in_plane = gap
+        replanned += in_plane
+        T = _orient_gap(T, P2, ids, F)
+        gid = np.empty(len(P2), dtype=np.int64)
+        k = len(poly)
+        on = ids >= 0
+        gid[:k][on] = ids[on]
+        new = np.r_[np.flatnonzero(~on), np.arange(k, len(P2))]
+        gid[new] = count + np.arange(len(new))
+        count += len(new)
+        Tall.append(gid[T])
+        Lall.append(gpy.halfedge_lengths_squared(P2, T))
+    return np.vstack(Tall), np.vstack(Lall), count, skipped, replanned
+
+
+def _own_corners(F: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each vertex of M as a corner of one of M's faces (kept as faces 0..m-1 of M*): (face (n,), bary (n,3))."""
+    face = np.empty(n, dtype=np.int64)
+    bary = np.zeros((n, 3))
+    for c in range(3):
+        face[F[:, c]] = np.arange(len(F))
+    corner = np.argmax(F[face] == np.arange(n)[:, None], axis=1)
+    bary[np.arange(n), corner] = 1.0
+    return face, bary

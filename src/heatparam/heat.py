@@ -28,16 +28,14 @@ _BYTES_PER_COLUMN_VERTEX = 12 * 8
 #: 32-64 (the (2m,k) gradient block no longer stays in cache); ``bench/bench_solvers.py`` (second table)
 #: measures it. On ~180k vertices the batch width hardly matters (memory bound either way).
 MAX_BLOCK = 16
-#: Meshes of at least this many vertices factorize with PARDISO when it is installed (backend ``auto``): for the
-#: ~100 landmark sources of the pipeline, camelhead↑180k factorization 1.2 vs 3.0 s and 26-31 vs 25-38 ms per
-#: source, camelhead↑727k 5.9 vs 18.3 s and 206 vs 136 ms per source; below it CHOLMOD's faster solves win for
-#: many sources (45k: 0.24 vs 0.52 s, 4.9 vs 4.2 ms per source).
+#: Meshes of at least this many vertices factorize with PARDISO when it is installed (backend ``auto``): its faster
+#: factorization pays for the pipeline's ~100 landmark sources there (camelhead↑180k: 1.2 vs 3.0 s); below it
+#: CHOLMOD's faster solves win.
 PARDISO_MIN_VERTICES = 100_000
 #: Batches of sources run in this many threads on meshes of fewer than THREADS_MAX_VERTICES vertices. A
 #: factorization is not safe to use from two threads at once, so the solves take turns (``HeatGeodesics._lock``);
 #: what overlaps is one batch's gradient, normalization and divergence products (numpy/scipy release the GIL) with
-#: the other's solves: 1.55 vs 1.60-1.83 ms per source at 24.6k vertices, 1.07 vs 1.29 ms on beetle (20k). On
-#: large meshes everything is memory-bound: camelhead↑182k geodesics 3.75-4.09 s vs 3.38-3.52 s, peak +130 MB.
+#: the other's solves (beetle: 1.07 vs 1.29 ms per source). Large meshes are memory-bound: threads only cost there.
 THREADS = 2
 THREADS_MAX_VERTICES = 100_000
 

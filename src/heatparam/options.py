@@ -3,7 +3,7 @@ validation, the command line (``cli``) and the option table in the README (:func
 
 No numerics are imported here: ``heatparam --help`` reads this table and nothing else.
 
-The policy thresholds the help texts quote (and the stages use) live here too, each with the measurement behind it.
+The policy thresholds the help texts quote (and the stages use) live here too, each with the reason for its value.
 """
 
 from __future__ import annotations
@@ -32,21 +32,17 @@ BACKENDS = ("auto", "cholespy", "scipy", "pardiso")
 #: (docs/refine.md), so skipping changed no start.
 ISOMETRIC_START_EXCESS = 1e-3
 #: On meshes of at least this many vertices whose conformal start is bijective the heat geodesics and MDS are skipped
-#: too: there the polish from the conformal layout reached the same map quality in less time on every part measured
-#: (BENCHMARKS §13b, mds_start always vs auto: the noisy demo part at 49k 10.3 vs 6.7 s — MDS had the lower start
-#: energy, 1.0029 vs 1.0237, and needed 5 Newton iterations against 3 —, noisy cylinder patches at 38k, halftunnel↑50k,
-#: beetle↑78k; iso mean equal to 6 digits; §13c: the noisy parts at 191-196k 46-55 → 23.5-23.7 s). It replaces the
-#: coarse-mesh fold check, whose skips (curved scans whose MDS folds: camelhead↑) all had a bijective conformal
-#: start. Where the conformal layout is not bijective (a 38k patch with noise 0.2 × edge; halftunnel without seams)
-#: the heat stage runs: MDS may be the only bijective start.
+#: too: there the polish from the conformal layout reached the same map quality in less time on every part measured,
+#: even where MDS had the lower start energy (the iso mean equal to 6 digits; BENCHMARKS.md §13b). Where the
+#: conformal layout is not bijective (strong scan noise; halftunnel without seams) the heat stage runs: MDS may be
+#: the only bijective start.
 CONFORMAL_START_MIN_VERTICES = 30_000
 #: ``seams auto`` keeps the cut-open map only when it lowers the mean isometric distortion by at least this fraction
-#: (measured, BENCHMARKS.md §6: halftunnel 1.536 → 1.18, beetle 1.080 → 1.02) ...
+#: (halftunnel 1.536 → 1.18, beetle 1.080 → 1.02) ...
 SEAM_MIN_GAIN = 0.02
 #: ... so it tries the cut-open mesh only when the map without seams exceeds 1 by more than this (2.04%): every map's
 #: mean isometric distortion is at least 1 (max(σ1, 1/σ2) ≥ 1 on every face), so below 1 / (1 - SEAM_MIN_GAIN) no
-#: cut map can be kept and the trial is wasted. (It was 1% before 2026-12-02: the noisy parts with holes, iso mean
-#: 1.013, flattened the cut mesh for nothing; 29 s of 75 s on a 191k-vertex one, BENCHMARKS.md §12d.)
+#: cut map can be kept and the trial is wasted (noisy parts with holes, iso mean 1.013, would cut for nothing).
 SEAM_TRY_EXCESS = 1.0 / (1.0 - SEAM_MIN_GAIN) - 1.0
 #: ``seams auto`` decides on paused polishes: each of the two flattenings (without and with seams) pauses once a
 #: Newton iteration gains less than this fraction of the energy's excess over an isometry (the map without seams
@@ -55,8 +51,8 @@ SEAM_PAUSE_EXCESS = 0.03
 #: ... and the decision is taken there when it holds for any finished iso mean between this fraction of the paused
 #: map's excess (iso mean - 1) and all of it (the polish lowers it); otherwise both are finished first. Only the
 #: kept map is finished: the same map, the same iterations as without pausing. Finished excess / paused excess
-#: measured 0.908-1.000 on 12 maps, 0.913 and 0.952 where the coarse level paused (BENCHMARKS.md §11c, §16); 0.5
-#: until stop 21, which left beetle↑311k undecided by 0.0006 of iso mean and finished its dropped map (20 s)
+#: measured 0.908-1.000 on 12 maps (BENCHMARKS.md §11c); a lower floor leaves close decisions undecided, and both
+#: maps are then finished.
 SEAM_PAUSE_FLOOR = 0.75
 #: Default of ``refine_multilevel``: meshes this large polish coarse-to-fine (docs/refine.md).
 MULTILEVEL_MIN_VERTICES = 30_000

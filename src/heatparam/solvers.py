@@ -7,10 +7,10 @@ Backends (``backend=``):
 - ``pardiso``: Intel MKL PARDISO through `pypardiso` (installed with heatparam on x86-64; MKL has no other
   platforms): faster factorizations, a numerical refactorization that reuses the symbolic analysis
   (:meth:`Factor.refactor`), and, with MKL's iterative refinement switched off, solves as fast as CHOLMOD's.
-  :func:`large_system_backend` picks it per use by measurement (BENCHMARKS.md §2, §4): the polish's Hessians at
-  every size, the heat-method systems from 100k vertices, the conformal layouts from 200k unknowns.
-  Large systems it orders itself get its improved two-level factorization, each factor's first solve checked
-  (:data:`TWO_LEVEL_MIN_UNKNOWNS`, BENCHMARKS.md §23f).
+  :func:`large_system_backend` picks it per use by measurement: the polish's Hessians at every size, the
+  heat-method systems from 100k vertices, the conformal layouts from 200k unknowns. Large systems it orders
+  itself get its improved two-level factorization, each factor's first solve checked
+  (:data:`TWO_LEVEL_MIN_UNKNOWNS`).
 
 ``auto`` takes the first available of cholespy, scipy (then PARDISO per :func:`large_system_backend`).
 """
@@ -38,8 +38,8 @@ def available_backends() -> list[str]:
 
 
 #: Default threshold of :func:`large_system_backend`: systems of at least this many unknowns use PARDISO when it is
-#: installed and the backend is ``auto`` (a pinned LSCM solve, 2026-11: 196k-vertex cylinder patch 1.7 s vs 10.0 s for
-#: igl.lscm).
+#: installed and the backend is ``auto`` (a 196k-vertex cylinder patch's LSCM solve 1.7 s vs 10.0 s for igl.lscm;
+#: BENCHMARKS.md §4).
 PARDISO_MIN_UNKNOWNS = 200_000
 
 
@@ -106,7 +106,7 @@ class Factor:
     @property
     def _two_level_size(self) -> bool:
         """Large enough for PARDISO's two-level factorization where PARDISO orders the system itself
-        (:data:`TWO_LEVEL_MIN_UNKNOWNS`; :meth:`refactor` then asks for a new ordering, ``REORDER_TWO_LEVEL``)."""
+        (:data:`TWO_LEVEL_MIN_UNKNOWNS`; :meth:`refactor` then asks for a new ordering)."""
         return self.n >= TWO_LEVEL_MIN_UNKNOWNS
 
     def _pardiso(self, pypardiso, ordering: tuple[np.ndarray, int] | None, numeric: bool = True):
@@ -118,9 +118,8 @@ class Factor:
         # MKL's defaults add 2 steps of iterative refinement to every solve (3x the work: 0.53 vs 0.19 s for 16
         # columns on camelhead↑180k's heat matrix); a Cholesky of an SPD matrix needs none (residual 1e-15)
         f.iparm[7] = 0
-        # METIS's OpenMP nested dissection: the same permutation as the serial one on every matrix measured (the
-        # conformal matrices of camelhead and beetle upsampled, a 623k-unknown Laplacian block matrix) in 1/3 less
-        # time (1.47-1.60 → 0.98-1.13 s, 2.04 → 1.51-1.55 s on 2 cores; BENCHMARKS §22)
+        # METIS's OpenMP nested dissection: the same permutation as the serial one on every matrix measured, in
+        # 1/3 less time on 2 cores
         f.iparm[1] = 3
         # the improved two-level factorization for large systems that PARDISO orders itself (TWO_LEVEL_MIN_UNKNOWNS)
         f.iparm[23] = 10 if ordering is None and self._two_level_size else 0
@@ -145,21 +144,15 @@ class Factor:
         """A factorization of A (same size as this one's matrix; ``upper`` as for :class:`Factor`), reusing what
         can be reused.
 
-        PARDISO keeps its symbolic analysis (the fill-reducing ordering: 0.67 s of the 1.3 s factorization of the
-        363k-unknown camelhead↑180k Hessian) and refactorizes this object in place when A's sparsity pattern lies
-        within the analysed one (A's values are placed on that pattern, explicit zeros elsewhere). Otherwise A's
-        own pattern is analysed anew, with this factor's fill-reducing permutation (the polish's scaffold is
-        re-triangulated at every iteration and its long edges across holes and the outer band change, so there
-        nearly every call is analysed anew: beetle's cut mesh 26 of 26, 2026-12-02; only the scaffold's couplings
-        differ, so the permutation still suits): camelhead↑180k's Hessian (363k unknowns) analysed in 0.50-0.67 s
-        instead of 0.84-1.19 s with METIS, the same factor size. Until stop 20 the new pattern was the union of
-        both, so that alternating patterns would settle; they did not, and the union only added nonzeros (beetle
-        upsampled to 311k, the cut mesh's fine level: factors of 54.5-56.3M nonzeros on the unions, 53.2-55.4M on
-        each pattern alone; in-process 141.8 → 128.1 s and peak 2417 → 2289 MB, one run each; BENCHMARKS.md §15).
-        From ``TWO_LEVEL_MIN_UNKNOWNS`` unknowns the new pattern gets a new METIS ordering instead
-        (``REORDER_TWO_LEVEL``): only then is the factor two-level, whose refactorizations and solves pay for the
-        ordering (beetle upsampled to 311k, the cut mesh's fine level, 624k unknowns: analysis + factorization
-        1.9 vs 1.6-2.0 s, refactorizations 0.44 vs 0.93 s, solves 0.08 vs 0.23 s; BENCHMARKS §24).
+        PARDISO keeps its symbolic analysis (the fill-reducing ordering: about half of a factorization's time) and
+        refactorizes this object in place when A's sparsity pattern lies within the analysed one (A's values are
+        placed on that pattern, explicit zeros elsewhere). Otherwise A's own pattern is analysed anew, with this
+        factor's fill-reducing permutation: the polish's re-triangulated scaffold changes the pattern at nearly
+        every iteration, but only in the scaffold's couplings, so the permutation still suits (camelhead↑180k's
+        Hessian analysed in 0.50-0.67 s instead of 0.84-1.19 s with METIS, the same factor size). From
+        ``TWO_LEVEL_MIN_UNKNOWNS`` unknowns the new pattern gets a new METIS ordering instead: only then is the
+        factor two-level, whose refactorizations and solves pay for the ordering (at 624k unknowns
+        refactorizations 0.44 vs 0.93 s, solves 0.08 vs 0.23 s).
         Other backends: a new :class:`Factor`. When PARDISO analyses anew, this object is freed first (:meth:`free`)
         and cannot solve any more.
         """
@@ -175,10 +168,9 @@ class Factor:
             if self.symbolic:  # an analysis made ahead of time, of another pattern: as if it had never been made
                 self.free()
                 return Factor(U, self.backend, upper=True)
-            # this factor is replaced: free MKL's copy of it before the new one is made, not after (beetle
-            # upsampled to 311k, the cut mesh's fine level: factors of ~0.5 GB; peak RSS in process 2321 -> 1873 MB,
-            # BENCHMARKS §18b)
-            ordering = None if self._two_level_size and REORDER_TWO_LEVEL else self.ordering
+            # this factor is replaced: free MKL's copy of it before the new one is made, not after (factors of
+            # ~0.5 GB at 624k unknowns: the peak RSS 2.3 → 1.9 GB)
+            ordering = None if self._two_level_size else self.ordering
             self.free()
             return Factor(U, self.backend, upper=True, ordering=ordering)
         return Factor(A, self.backend, upper=upper)
@@ -223,8 +215,7 @@ class Factor:
                 if _solved(self._T, x, b, self._norm()):
                     self._checked = self._T  # this factor of this matrix solved well
                 else:
-                    # the two-level factorization solved badly (measured with a permutation given: residuals of 13
-                    # and 2e9, BENCHMARKS §23f): the classic one, with the same ordering, from now on
+                    # the two-level factorization solved badly: the classic one, with the same ordering, from now on
                     prepare_mkl()
                     import pypardiso
 
@@ -276,28 +267,21 @@ def solve_unsymmetric(A: sp.spmatrix, b: np.ndarray, backend: str = "auto") -> n
 #: times the nonzeros of the factor the permutation was made for (:meth:`Factor.refactor`).
 REORDER_FILL = 1.25
 
-#: A new pattern of a system of ≥ TWO_LEVEL_MIN_UNKNOWNS unknowns gets a new METIS ordering (and so the two-level
-#: factorization, which a given permutation rules out) instead of the last factor's permutation (Factor.refactor)
-REORDER_TWO_LEVEL = True
-
 _DEFAULT_IPARM: np.ndarray | None = None
 
 
 #: PARDISO's improved two-level factorization (iparm 24 = 10, 1-based; 0, the classic one, is MKL's default) for
-#: systems of at least this many unknowns that PARDISO orders itself (iparm 5 = 2). Measured on the 2-core Xeon of
-#: BENCHMARKS §23f, camelhead↑180k's Hessian (363k unknowns): factorization 0.48-0.51 → 0.38 s, refactorization
-#: 0.40-0.42 → 0.31 s, a solve 0.12-0.15 → 0.04 s; its conformal matrix: 0.35 → 0.20 s, solves 0.13 → 0.03 s; the
-#: same maps to 11-13 digits, bit-identical run to run. Not below this size: the messy dragon scan's atlas (charts
-#: of tens of faces) got a chart with iso 59 instead of 3.3 and 43 pipeline fallbacks instead of 6. Not with a
-#: permutation given (iparm 5 = 1): no faster there, not reproducible run to run, and wrong (residuals 13 and 2e9,
-#: ``bench/bench_pardiso.py``). The first solve of every such factor is checked (:data:`TWO_LEVEL_BACKWARD_ERROR`).
+#: systems of at least this many unknowns that PARDISO orders itself (iparm 5 = 2): faster factorizations and 3-4×
+#: faster solves, the same maps to 11-13 digits (BENCHMARKS.md §23f). Not below this size (an atlas's charts of
+#: tens of faces came out worse), nor with a permutation given (iparm 5 = 1: not reproducible run to run, and
+#: wrong). The first solve of every such factor is checked (:data:`TWO_LEVEL_BACKWARD_ERROR`).
 TWO_LEVEL_MIN_UNKNOWNS = 100_000
 
 
 #: A two-level factor's first solve is checked: its normwise backward error ‖A x − b‖∞ / (‖A‖∞ ‖x‖∞ + ‖b‖∞)
 #: (per column) must stay below this. A stable Cholesky solve's is ~1e-16 whatever the conditioning (the spectral
-#: conformal layout solves with a nearly singular matrix on purpose: ‖A x − b‖ / ‖b‖ 1e-7 on beetle↑'s, BENCHMARKS
-#: §23f); the bad solves measured were off by orders of magnitude more
+#: conformal layout solves with a nearly singular matrix on purpose), the bad solves measured orders of magnitude
+#: more.
 TWO_LEVEL_BACKWARD_ERROR = 1e-10
 
 
@@ -340,9 +324,8 @@ def _csr_keys(M: sp.csr_matrix) -> np.ndarray:
 def within(P: sp.csr_matrix, T: sp.csr_matrix) -> sp.csr_matrix | None:
     """T's values on P's sparsity pattern (explicit zeros where only P has entries) when T's pattern lies within
     P's, else None (sorted CSR, same shape). No union is formed: a T with more entries than P, in all or in a row,
-    is not within it, and otherwise T's entries are looked up among P's (beetle upsampled to 311k, its fine level's
-    re-triangulated scaffolds: 0.43 s per iteration for the union this replaced, built only to be compared with
-    P)."""
+    is not within it, and otherwise T's entries are looked up among P's (a union, built only to be compared with
+    P, cost 0.43 s per iteration at 311k vertices)."""
     if T.nnz > P.nnz or (np.diff(T.indptr) > np.diff(P.indptr)).any():  # a row with more entries: not within
         return None
     kp, kt = _csr_keys(P), _csr_keys(T)
@@ -371,9 +354,8 @@ def _pardiso_numeric(solver, T: sp.csr_matrix) -> bool:
 
 #: PARDISO runs on one thread for SPD systems of fewer unknowns than this (the thread that calls it only:
 #: :func:`pardiso_threads`); larger ones on all of MKL's threads. Small factorizations gain little from a second
-#: thread and lose much when the machine is busy: cow's atlas (its joint polish factorizes 12k unknowns), median of
-#: 9, took 0.329 s with PARDISO on 2 threads and 0.320 s with this threshold, quiet; 0.508 vs 0.368 s beside a
-#: process that kept one core busy, where xatlas (one thread) took 0.337 and 0.376 s (BENCHMARKS §26).
+#: thread and lose much when the machine is busy (cow's atlas, 12k unknowns: 0.508 vs 0.368 s beside a process
+#: that kept one core busy, the same time when quiet; BENCHMARKS.md §26).
 PARDISO_SERIAL_BELOW = 20_000
 
 

@@ -110,21 +110,10 @@ def smacof(X0: np.ndarray, D: np.ndarray, landmarks: np.ndarray | None = None, i
     z_i = z_j). Each transform minimizes a quadratic majorizer of σ that touches it at Z, so σ never increases.
     V⁺ returns the centred solution (Σ x_i = 0, the constraint of Eq. 1).
 
-    Patterns
-    --------
-    all-pairs (``landmarks`` None): D (n,n) symmetric (as ``heat.all_pairs`` returns it), every pair. With unit
-        weights V = n·I − 11ᵀ and V⁺ B Z = B Z / n (B Z is centred): no solve. With ``weights`` (n,n) symmetric,
-        or non-finite entries of D (weight 0), V is factorized once (dense Cholesky of V + 11ᵀ/n; O(n³)).
-    landmarks: D (n,k), column j the distances from point ``landmarks[j]`` (k distinct row ids) to every point;
-        only those n·k pairs enter σ (a pair of two landmarks twice, once per direction; the pair of a landmark
-        with itself not at all). Memory and time O(n·k) per iteration, never an n×n array. The pattern is
-        bipartite: a non-landmark point touches only landmarks, so V's block on the non-landmark points P is
-        the diagonal of their degrees Δ_P and V = [[Δ_P, −W_P], [−W_Pᵀ, V_L]] (W_P (|P|,k) their weights). V x = y
-        is solved by the Schur complement on the landmarks, S = V_L − W_Pᵀ Δ_P⁻¹ W_P (k×k, singular along 1:
-        S + 11ᵀ/k is Cholesky-factorized once, before the loop): x_L = S⁺ (y_L + W_Pᵀ Δ_P⁻¹ y_P),
-        x_P = Δ_P⁻¹ (y_P + W_P x_L), then x is centred. This is exactly V⁺ y (y = B Z sums to zero); a sparse
-        Cholesky of V with the landmarks ordered last performs the same elimination. A point with no finite
-        distance (degree 0) keeps its start position.
+    Patterns: all-pairs (``landmarks`` None; :class:`_AllPairs`): D (n,n) symmetric (as ``heat.all_pairs``
+    returns it), every pair. landmarks (:class:`_Bipartite`): D (n,k), column j the distances from point
+    ``landmarks[j]`` (k distinct row ids) to every point; only those n·k pairs enter σ, in O(n·k) memory and time
+    per iteration.
 
     Parameters
     ----------
@@ -142,10 +131,20 @@ def smacof(X0: np.ndarray, D: np.ndarray, landmarks: np.ndarray | None = None, i
     """
     t0 = time.perf_counter()
     X = np.array(X0, dtype=np.float64)
-    D = np.asarray(D)
+    pattern = _pattern(X, np.asarray(D), landmarks, weights)
+    X, hist, it, converged = _majorize(pattern, X, iters, tol)
+    rel = [float(np.sqrt(h / pattern.den)) for h in hist]
+    info = {"pattern": pattern.name, "pairs": pattern.pairs, "iterations": it, "converged": converged,
+            "stress_start": rel[0], "stress_end": rel[-1], "history": rel,
+            "seconds": round(time.perf_counter() - t0, 4)}
+    return X, info
+
+
+def _pattern(X: np.ndarray, D: np.ndarray, landmarks: np.ndarray | None, weights: np.ndarray | None):
+    """The checked pattern of :func:`smacof`'s arguments: :class:`_AllPairs` or :class:`_Bipartite`."""
     if X.ndim != 2:
         raise ValueError(f"X0 must be (n,dim), got shape {X.shape}")
-    n, dim = X.shape
+    n = X.shape[0]
     if weights is not None:
         weights = np.asarray(weights, dtype=np.float64)
         if weights.shape != D.shape or (weights < 0).any():
@@ -153,33 +152,30 @@ def smacof(X0: np.ndarray, D: np.ndarray, landmarks: np.ndarray | None = None, i
     if landmarks is None:
         if D.shape != (n, n):
             raise ValueError(f"all-pairs SMACOF needs D of shape ({n}, {n}), got {D.shape}")
-        pattern = _AllPairs(D, weights)
-    else:
-        lm = np.asarray(landmarks, dtype=np.int64).ravel()
-        if D.shape != (n, len(lm)):
-            raise ValueError(f"landmark SMACOF needs D of shape ({n}, {len(lm)}), got {D.shape}")
-        if len(lm) < 2 or lm.min() < 0 or lm.max() >= n or len(np.unique(lm)) != len(lm):
-            raise ValueError("landmarks must be at least 2 distinct row indices of D")
-        pattern = _Bipartite(D, lm, weights)
+        return _AllPairs(D, weights)
+    lm = np.asarray(landmarks, dtype=np.int64).ravel()
+    if D.shape != (n, len(lm)):
+        raise ValueError(f"landmark SMACOF needs D of shape ({n}, {len(lm)}), got {D.shape}")
+    if len(lm) < 2 or lm.min() < 0 or lm.max() >= n or len(np.unique(lm)) != len(lm):
+        raise ValueError("landmarks must be at least 2 distinct row indices of D")
+    return _Bipartite(D, lm, weights)
+
+
+def _majorize(pattern, X: np.ndarray, iters: int, tol: float) -> tuple[np.ndarray, list[float], int, bool]:
+    """Guttman transforms of X until σ drops by less than ``tol`` of itself, reaches 0 or ``iters`` transforms:
+    (X, σ before each transform and at the end, transforms, converged)."""
     hist: list[float] = []
-    converged = False
     it = 0
     while True:
         num, BZ = pattern.evaluate(X)
         hist.append(num)
         if len(hist) > 1 and hist[-2] - num <= tol * hist[-2]:
-            converged = True
-            break
+            return X, hist, it, True
         if it == iters or num == 0.0:
-            converged = num == 0.0
-            break
+            return X, hist, it, num == 0.0
         X = pattern.solve(BZ, X)
         it += 1
-    rel = [float(np.sqrt(h / pattern.den)) for h in hist]
-    info = {"pattern": pattern.name, "pairs": pattern.pairs, "iterations": it, "converged": converged,
-            "stress_start": rel[0], "stress_end": rel[-1], "history": rel,
-            "seconds": round(time.perf_counter() - t0, 4)}
-    return X, info
+
 
 _CHUNK = 2**21  # entries of an (rows, k) or (rows, n) scratch block: bounded extra memory per step
 
@@ -203,6 +199,10 @@ def _ratio(W: np.ndarray | None, Dc: np.ndarray, dist: np.ndarray) -> np.ndarray
     return np.divide(Dc if W is None else W * Dc, dist, out=np.zeros_like(dist), where=dist > 0)
 
 class _AllPairs:
+    """Every pair of D (n,n). With unit weights V = n·I − 11ᵀ and V⁺ B Z = B Z / n (B Z is centred): no solve.
+    With weights (n,n) symmetric, or non-finite entries of D (weight 0), V is factorized once (dense Cholesky of
+    V + 11ᵀ/n; O(n³))."""
+
     name = "all-pairs"
 
     def __init__(self, D: np.ndarray, W: np.ndarray | None):
@@ -252,6 +252,16 @@ class _AllPairs:
         return Y - Y.mean(axis=0)
 
 class _Bipartite:
+    """The n·k point-landmark pairs of D (n,k) (a pair of two landmarks twice, once per direction; the pair of a
+    landmark with itself not at all), never an n×n array.
+
+    The pattern is bipartite: a non-landmark point touches only landmarks, so V's block on the non-landmark points
+    P is the diagonal of their degrees Δ_P and V = [[Δ_P, −W_P], [−W_Pᵀ, V_L]] (W_P (|P|,k) their weights). V x = y
+    is solved by the Schur complement on the landmarks, S = V_L − W_Pᵀ Δ_P⁻¹ W_P (k×k, singular along 1: S + 11ᵀ/k
+    is Cholesky-factorized once): x_L = S⁺ (y_L + W_Pᵀ Δ_P⁻¹ y_P), x_P = Δ_P⁻¹ (y_P + W_P x_L), then x is centred.
+    This is exactly V⁺ y (y = B Z sums to zero); a sparse Cholesky of V with the landmarks ordered last performs
+    the same elimination. A point with no finite distance (degree 0) keeps its start position."""
+
     name = "landmarks"
 
     def __init__(self, D: np.ndarray, lm: np.ndarray, W: np.ndarray | None):

@@ -43,7 +43,7 @@ def build_disk(V: np.ndarray, F: np.ndarray) -> Disk:
 #: Tutte's weights. ``mean_value`` (Floater 2003: positive, so the embedding is bijective for a convex border as with
 #: uniform weights, and nearly conformal on a smooth surface) unless the surface's triangles make them non-finite
 #: or the result flips a face in floating point; then ``uniform``. halftunnel upsampled to 201k: start energy
-#: 23.6 with mean value weights, 1820 with uniform ones (BENCHMARKS.md §15).
+#: 23.6 with mean value weights, 1820 with uniform ones.
 TUTTE_WEIGHTS = ("mean_value", "uniform")
 
 

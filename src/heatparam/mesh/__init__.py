@@ -1,4 +1,4 @@
-"""The mesh M (paper §2): validation at the door, topology, planar helpers, seams.
+"""The paper's mesh M: validation at the door, topology, planar helpers, seams.
 
 ``validate``  MeshInfo, validate_mesh — a connected, oriented 2-manifold with border (or any with ``flatten=False``)
 ``topology``  edges, boundary loops (one walker), loop lengths, vertex compaction, face areas

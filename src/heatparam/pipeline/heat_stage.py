@@ -85,7 +85,7 @@ class MdsMap(NamedTuple):
 
 
 def decide_fill(opts, surface: Surface, seamed: bool) -> tuple[bool, str]:
-    """Whether to compute on a fill surface M* (§2.5), and why (``seamed``: a mesh cut open along seams, which a
+    """Whether to compute on a fill surface M*, and why (``seamed``: a mesh cut open along seams, which a
     fill would close again, so ``fill auto`` means none)."""
     if seamed and opts.fill == "auto":
         return False, "not on a mesh cut open along seams (a fill would close them)"

@@ -6,9 +6,9 @@ generous gaps and :func:`newton.polish` minimizes the symmetric Dirichlet energy
 (the default, ``scaffold=False``) the Hessian is block diagonal, one block per chart, and each chart takes its own
 step: at most 0.9 × its flip barrier, then halved until no two boundary edges cross (checked, not barred: a
 flip-free disk whose boundary does not cross is bijective). Against one scaffold (Jiang et al. 2017) around all the
-charts it measured 0.39-0.54 -> 0.19-0.30 s on cow's 34 charts and 0.24-0.32 -> 0.11-0.13 s on 3holes' 12, at iso
-mean 1.02156 -> 1.02274 and 1.02259 -> 1.02259 (BENCHMARKS §20): a chart whose optimum overlaps itself stops where
-its boundary would cross, where a scaffold would have let the rest of it relax (``scaffold=True`` keeps that).
+charts this halved the time (cow's 34 charts, 3holes' 12) at about the same iso mean: a chart
+whose optimum overlaps itself stops where its boundary would cross, where a scaffold would have let the rest of it
+relax (``scaffold=True`` keeps that).
 Either way every chart stays locally injective and no two boundaries cross, within a chart or between charts.
 """
 
@@ -30,9 +30,9 @@ __all__ = ["CHART_GAP", "EXCESS_TOL", "arrange", "refine_charts"]
 CHART_GAP = 0.25
 
 #: the joint polish also stops once an iteration gains less than this fraction of the energy's excess over an
-#: isometry (``newton.polish``'s excess_tol): cow 16 -> 8 iterations, iso mean 1.02124 -> 1.02149 (BENCHMARKS §10);
-#: and, whatever the step and the scaffold, after ``newton.EXCESS_STALL_ITERS`` such iterations in a row: cow 9 -> 5
-#: iterations (0.67 -> 0.32 s), iso mean 1.02137 -> 1.02156 (BENCHMARKS §18)
+#: isometry (``newton.polish``'s excess_tol), and, whatever the step and the scaffold, after
+#: ``newton.EXCESS_STALL_ITERS`` such iterations in a row: on cow half the iterations for an iso mean 2e-4 higher
+#: (BENCHMARKS.md §18a).
 EXCESS_TOL = 0.03
 
 

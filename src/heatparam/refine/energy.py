@@ -145,7 +145,7 @@ BLOCK_ENTRIES = np.array([(i, j) for i, j in zip(_I3, _J3, strict=True)]
                          + [(i, 3 + j) for i in range(3) for j in range(3)], dtype=np.int64)
 
 #: Faces per pass of :func:`sd_newton_entries`: its ~60 temporaries of this length stay in the CPU's cache (363k faces
-#: at once: 0.21 s; in passes of 4k-16k faces: 0.10 s, 2026-12-04; :func:`sd_newton_blocks`: 0.34 s)
+#: at once: 0.21 s; in passes of 4k-16k faces: 0.10 s; :func:`sd_newton_blocks`: 0.34 s)
 ENTRY_CHUNK = 8192
 
 

@@ -66,10 +66,9 @@ def loop_edges(ranges: list[np.ndarray]) -> np.ndarray:
 
 #: The polish keeps the last iteration's scaffold while each of its triangles keeps at least this fraction of the
 #: signed area it had when triangulated (:func:`scaffold_holds`): the Hessian's sparsity pattern then stays the same
-#: and PARDISO refactorizes without a new analysis (BENCHMARKS.md §19). 0: always re-triangulate. 0.5 until stop
-#: 29; 0.1: beetle upsampled to 311k, its cut map's fine level (stiff after its coarse level stalled), 2 of 4
-#: factorizations in place instead of 1 of 4 (fine polish 12.1 → 10.8 s), energy the same to 10 digits (BENCHMARKS
-#: §24); positivity alone did no better there
+#: and PARDISO refactorizes without a new analysis. 0: always re-triangulate. 0.1 keeps more scaffolds than 0.5
+#: (half the fine factorizations in place on beetle↑311k's cut map, the energy the same to 10 digits; BENCHMARKS.md
+#: §24b); positivity alone did no better.
 SCAFFOLD_KEEP = 0.1
 
 

@@ -31,9 +31,8 @@ def bijectivity(uv: np.ndarray, F: np.ndarray, g: np.ndarray) -> tuple[int, int]
     return 0, int(metrics.boundary_crossings(uv, F)) + metrics.inverted_loops(uv, F)
 
 #: An MDS layout with a few flipped faces (at most this fraction, and at least 1) is repaired before it competes as a
-#: start: ``repair_flips`` with the boundary locked, accepted only when the result is bijective. A cylinder patch of
-#: 49k vertices with noise of 0.2 × the edge length: MDS had 3 flips (energy 1.079 after the repair), LSCM energy
-#: 4.69; polish 13 instead of 26 Newton iterations, the same map quality (SD 1.005365, iso 1.0563).
+#: start: ``repair_flips`` with the boundary locked, accepted only when the result is bijective (a noisy 49k-vertex
+#: patch: 3 flips repaired, then half the Newton iterations for the same map quality).
 MDS_REPAIR_MAX_FRACTION = 1e-3
 
 def repaired_layout(x: np.ndarray, F: np.ndarray, g: np.ndarray, loops: list[np.ndarray]
@@ -77,8 +76,8 @@ class LscmStart(NamedTuple):
 def lscm_start(V: np.ndarray, F: np.ndarray, conformal: Callable[[], np.ndarray] | None = None,
                surface: tuple[np.ndarray, np.ndarray] | None = None) -> LscmStart:
     """The conformal layout of (V, F) (``conformal()`` if given, else computed) judged as a start for the polish; a
-    few flipped faces are repaired as MDS's are (:func:`repaired_layout`): a cylinder patch with holes and scanner
-    noise of 0.2 × the edge length, 182k vertices: 7 flipped faces, repaired in one round (BENCHMARKS §18).
+    few flipped faces are repaired as MDS's are (:func:`repaired_layout`; strong scanner noise leaves a few, e.g.
+    7 of a 182k-vertex noisy cylinder patch's faces).
 
     surface : ``surface_gradients(V, F)`` if already computed.
     """

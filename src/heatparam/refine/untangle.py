@@ -9,8 +9,8 @@ Garanzha, Kaporin, Kudryavtseva, Protais, Ray, Sokolov, *Foldover-free maps in 5
 (a shape term and an area term, both finite for flipped triangles while ε > 0). E_ε is minimized by L-BFGS
 (scipy) over the free vertices for a decreasing sequence of ε; once no triangle is flipped a last minimization
 with ε ≈ 0 (a barrier: χ ≈ D) improves the worst triangles without flipping them. λ = 1/2 (the paper's λ is a
-free parameter): with a small λ the repaired triangles come out thin (the coarse-to-fine start of a 50k-vertex
-halftunnel: symmetric Dirichlet energy 36 after λ = 10⁻³, 1.36 after λ = 1/2, BENCHMARKS.md §11c).
+free parameter): with a small λ the repaired triangles come out thin (a 50k-vertex halftunnel's coarse-to-fine
+start: symmetric Dirichlet energy 36 after λ = 10⁻³, 1.36 after λ = 1/2).
 
 Used by :func:`heatparam.refine.multilevel.coarse_to_fine` where the mean value repair of a prolongation fails
 (flips beside a locked, non-convex boundary: mean value interpolation is flip-free only inside convex regions).
@@ -54,7 +54,6 @@ def untangle(x: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, free
     (layout (n,2) with every triangle positive, or None when flips remain; the number of minimizations run).
     """
     y = np.array(x, dtype=np.float64, copy=True)
-    n = len(y)
     fi = np.flatnonzero(free)
     faces = np.flatnonzero(free[F].any(axis=1))
     if not len(fi) or not len(faces):
@@ -65,14 +64,41 @@ def untangle(x: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, free
         return None, 0
     Fr, gr = F[faces], g[faces]
     w = area[faces] / float(area[faces].mean())
+    problem = (y, fi, Fr, gr, w)
+    dmin = float(det(jacobians(y, Fr, gr)).min())
+    eps = max(1e-3, 2.0 * abs(min(dmin, 0.0)))
+    for r in range(1, UNTANGLE_ROUNDS + 1):
+        _minimize(eps, *problem)
+        if not _flipped(y, Fr, gr):
+            good = y.copy()
+            _minimize(BARRIER_EPS, *problem)
+            if _flipped(y, Fr, gr) or not np.isfinite(y).all():  # keep the flip-free layout of the last round
+                y[:] = good
+            return y, r + 1
+        eps /= EPS_DECAY
+    return None, UNTANGLE_ROUNDS
+
+
+def _flipped(y: np.ndarray, Fr: np.ndarray, gr: np.ndarray) -> bool:
+    return bool((det(jacobians(y, Fr, gr)) <= 0).any())
+
+
+def _minimize(eps: float, y: np.ndarray, fi: np.ndarray, Fr: np.ndarray, gr: np.ndarray, w: np.ndarray) -> None:
+    """One L-BFGS minimization of E_ε over the free vertices ``fi`` of y (in place) on the faces Fr (hat
+    gradients gr, weights w: areas over their mean)."""
+    from scipy.optimize import minimize  # here: only a failed repair untangles (the import is 0.06 s)
+
+    res = minimize(_energy, y[fi].ravel(), args=(eps, y, fi, Fr, gr, w), jac=True, method="L-BFGS-B",
+                   options={"maxiter": UNTANGLE_MAX_ITERS})
+    y[fi] = res.x.reshape(-1, 2)
+
+
+def _energy(z: np.ndarray, eps: float, y: np.ndarray, fi: np.ndarray, Fr: np.ndarray, gr: np.ndarray,
+            w: np.ndarray) -> tuple[float, np.ndarray]:
+    """E_ε (module docstring) with the free vertices at z (written into y) and its gradient with respect to z."""
     lam = UNTANGLE_LAMBDA
-
-    def energy(z: np.ndarray, eps: float) -> tuple[float, np.ndarray]:
-        with np.errstate(divide="ignore", invalid="ignore"):  # χ = 0 (D + s cancels for D ≪ -ε): E = inf, L-BFGS
-            return _energy(z, eps)                            # backs off from such a point
-
-    def _energy(z: np.ndarray, eps: float) -> tuple[float, np.ndarray]:
-        y[fi] = z.reshape(-1, 2)
+    with np.errstate(divide="ignore", invalid="ignore"):  # χ = 0 (D + s cancels for D ≪ -ε): E = inf, L-BFGS
+        y[fi] = z.reshape(-1, 2)                          # backs off from such a point
         J = jacobians(y, Fr, gr)
         D = det(J)
         s = np.sqrt(eps * eps + D * D)
@@ -85,30 +111,7 @@ def untangle(x: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, free
         cof = np.empty_like(J)
         cof[:, 0, 0], cof[:, 0, 1], cof[:, 1, 0], cof[:, 1, 1] = J[:, 1, 1], -J[:, 1, 0], -J[:, 0, 1], J[:, 0, 0]
         dJ = w[:, None, None] * ((1.0 - lam) * 2.0 * J / chi[:, None, None] + dD[:, None, None] * cof)
-        return E, scatter(dJ, Fr, gr, n)[fi].ravel()
-
-    from scipy.optimize import minimize  # here: only a failed repair untangles (the import is 0.06 s)
-
-    def run(eps: float) -> None:
-        res = minimize(energy, y[fi].ravel(), args=(eps,), jac=True, method="L-BFGS-B",
-                       options={"maxiter": UNTANGLE_MAX_ITERS})
-        y[fi] = res.x.reshape(-1, 2)
-
-    def flipped() -> bool:
-        return bool((det(jacobians(y, Fr, gr)) <= 0).any())
-
-    dmin = float(det(jacobians(y, Fr, gr)).min())
-    eps = max(1e-3, 2.0 * abs(min(dmin, 0.0)))
-    for r in range(1, UNTANGLE_ROUNDS + 1):
-        run(eps)
-        if not flipped():
-            good = y.copy()
-            run(BARRIER_EPS)
-            if flipped() or not np.isfinite(y).all():  # keep the flip-free layout of the last round
-                y[:] = good
-            return y, r + 1
-        eps /= EPS_DECAY
-    return None, UNTANGLE_ROUNDS
+        return E, scatter(dJ, Fr, gr, len(y))[fi].ravel()
 
 
 __all__ = ["untangle"]
