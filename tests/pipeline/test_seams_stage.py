@@ -1,0 +1,34 @@
+"""The seams stage's cut mesh (``pipeline.seams``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from heatparam import datasets, parameterize
+from heatparam.formats import load_mesh
+
+from conftest import shared_mesh
+
+
+def _cap():
+    """A strongly curved cap (sphere radius 1.5) with two eye holes and a mouth slot, ~1.2k vertices."""
+    s = datasets.curved_cap_with_holes(sphere_radius=1.5, h=0.05)
+    return s.V, s.F
+
+
+def _halftunnel():
+    return load_mesh(shared_mesh("halftunnel.off"))
+
+
+@pytest.mark.parametrize("case,kw,why", [(_halftunnel, {}, "the surface is cut open along seams"),
+                                         (_cap, {"seams": "holes"}, "the conformal layout is bijective and within")],
+                         ids=["halftunnel", "cap"])
+def test_cut_mesh_skips_the_heat_stage_with_the_same_map(case, kw, why):
+    V, F = case()
+    a = parameterize(V, F, **kw)
+    b = parameterize(V, F, mds_start="always", **kw)
+    assert a.seamed and b.seamed
+    assert a.report["method"]["geodesics"].startswith(f"skipped: {why}")
+    assert not b.report["method"]["geodesics"].startswith("skipped")
+    assert np.array_equal(a.uv, b.uv) and np.array_equal(a.Fuv, b.Fuv)
