@@ -1,4 +1,4 @@
-"""Progressive reference shapes (Liu et al. 2018) for the cut mesh's polish from Tutte (issue 17): do they cut the
+"""Progressive reference shapes (Liu et al. 2018) for the cut mesh's polish from Tutte: do they cut the
 Newton iterations to a third?
 
 Usage: ``python bench/bench_progressive.py [K ...]`` (default 2 4). beetle.off from ../shared/meshes, default options,
@@ -28,9 +28,9 @@ ORIGINAL = refine_pkg.multilevel_polish
 
 
 def progressive(K: float, log: dict):
-    def run(V, F, x, loops, g, area, **kw):
+    def run(V, F, x, loops, g, area, settings, **kw):
         if E.normalized_energy(x, F, g, area) < 2.0:
-            return ORIGINAL(V, F, x, loops, g, area, **kw)
+            return ORIGINAL(V, F, x, loops, g, area, settings, **kw)
         raw = edge_lengths(V, F)
         P = local_triangles(mollify(raw, 1e-4 * float(raw.mean()))[0])
         outer, t0 = 0, time.perf_counter()
@@ -42,10 +42,10 @@ def progressive(K: float, log: dict):
             w = np.log(K) / np.log(D)
             JR = np.matmul(U * (s ** (1 - w))[:, None, :], Vr.transpose(0, 2, 1))
             gR = E.hat_gradients(np.einsum("mab,mib->mia", JR, P))
-            x, _ = polish(x, F, gR, area, loops, max_iters=1, tol=kw["tol"], backend=kw["backend"])
+            x, _ = polish(x, F, gR, area, loops, max_iters=1, tol=settings.tol, backend=settings.backend)
             outer += 1
         log.update(outer=outer, outer_s=time.perf_counter() - t0)
-        return ORIGINAL(V, F, x, loops, g, area, **kw)
+        return ORIGINAL(V, F, x, loops, g, area, settings, **kw)
     return run
 
 

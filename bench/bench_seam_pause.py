@@ -55,10 +55,10 @@ def paused_vs_finished(name: str) -> None:
     paths = hole_seams(surface.V, surface.F, surface.info.boundary_loops)
     Vs, Fs, _ = cut_open(surface.V, surface.F, paths)
     cut = Surface(Vs, Fs, validate_mesh(Vs, Fs))
-    pause, coarse = seams.seam_pause(surface, opts)
+    pausing = seams.seam_pause(surface, opts)
     for tag, srf, seamed in (("without seams", surface, False), ("with seams", cut, True)):
         t0 = time.perf_counter()
-        f = flatten(srf, opts, quiet, seamed, None, pause, coarse if not seamed else 0.0)
+        f = flatten(srf, opts, quiet, seamed=seamed, pausing=pausing if not seamed else pausing._replace(coarse=0.0))
         it_p, iso_p = _its(f.method["refine"]), f.summary["iso_mean"]
         t1 = time.perf_counter()
         g = f if f.resume is None else f.resume()

@@ -1,4 +1,4 @@
-"""The seams stage's second flattening (issue 17): where its time goes and which start serves the cut mesh.
+"""The seams stage's second flattening: where its time goes and which start serves the cut mesh.
 
 Usage: ``python bench/bench_seams.py [mesh ...]`` (default halftunnel.off beetle.off from ../shared/meshes, or a
 ``heatparam.datasets`` name). A markdown table on stdout. Per mesh:
@@ -6,14 +6,14 @@ Usage: ``python bench/bench_seams.py [mesh ...]`` (default halftunnel.off beetle
 * ``parameterize`` end to end with default options: wall and CPU seconds (``time.process_time``: this machine is
   shared, so wall time says little alone), Newton iterations of the kept map and of the map without seams;
 * the cut mesh's flattening alone (``pipeline.flatten(cut, seamed=True)``), from the same uncut map, as
-  - ``heat stage`` — ``mds_start="always"``: the fill / geodesics / MDS run on the cut mesh (before 2026-12-01),
+  - ``heat stage`` — ``mds_start="always"``: the fill / geodesics / MDS run on the cut mesh,
   - ``no reopened start`` — the heat stage skipped on the cut mesh (``pipeline.shortcuts``, case (c)), the start
-    candidates of ``flatten`` alone (the conformal layout, else Tutte): the cut mesh's default before stop 19,
-  - ``conformal reopened`` — as the seams stage runs it since stop 19: its conformal layout with crossing slits
-    reopened (``refine.seam_start.reopen_crossing_slits``) offered as a start,
-  - ``+ uncut start`` — the uncut map with its slits opened (``refine.seam_start.open_slits``) offered as a start,
-  - ``uncut start only`` / ``Tutte only`` — ``refine.refine`` from that start alone / from Tutte's embedding alone,
+    candidates of ``flatten`` alone (the conformal layout, else Tutte),
+  - ``conformal reopened`` — as the seams stage runs it: its conformal layout with crossing slits reopened
+    (``refine.reopen_slits.reopen_crossing_slits``) offered as a start,
+  - ``Tutte only`` — ``refine.refine`` from Tutte's embedding alone,
   each with its start layout and energy, Newton iterations, final energy, iso mean, flips and boundary crossings.
+(The uncut map with its slits opened as a start lost on beetle and halftunnel: BENCHMARKS.md §14; git history.)
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from heatparam.pipeline import flatten, parameterize
 from heatparam.pipeline.surface import Surface
 from heatparam.progress import Progress
 from heatparam.refine import LscmStart, refine
-from heatparam.refine.seam_start import open_slits, reopen_crossing_slits
+from heatparam.refine.reopen_slits import reopen_crossing_slits
 
 NO_LSCM = LscmStart(None, -1, -1, None, "left out by the benchmark")
 
@@ -68,13 +68,11 @@ def main(names: list[str]) -> None:
             note += f"; without seams: {without['start']['layout']}, {without['polish']['iterations']} it"
         print(row(name, f"parameterize, default ({note})", wall, cpu, kept, rep["metrics"]))
         surface = Surface.validated(V, F)[0]
-        flat = flatten(surface, opts, quiet)
         paths = hole_seams(surface.V, surface.F, surface.info.boundary_loops)
         if not paths:
             continue
         Vs, Fs, src = cut_open(surface.V, surface.F, paths)
         cut = Surface(Vs, Fs, validate_mesh(Vs, Fs))
-        x, orep = open_slits(flat.uv[src], Fs, src)
         runs = [("cut: heat stage (before)", make_options(None, mds_start="always"), None),
                 ("cut: no reopened start", opts, None)]
         xr, rrep = reopen_crossing_slits(cut.conformal(), Fs, src)
@@ -83,19 +81,11 @@ def main(names: list[str]) -> None:
                          {"conformal_reopened": xr}))
         else:
             print(f"| {name} | cut: conformal reopened | – | – | none: {rrep['reason']} |")
-        if x is not None:
-            runs.append(("cut: + uncut start", opts, {"uncut": x}))
         for variant, o, starts in runs:
-            f, wall, cpu = timed(flatten, cut, o, quiet, True, starts)
+            f, wall, cpu = timed(flatten, cut, o, quiet, seamed=True, starts=starts)
             print(row(name, variant, wall, cpu, f.method["refine"], f.summary), flush=True)
-        alone = [("cut: Tutte only", {"lscm": NO_LSCM})]
-        if x is not None:
-            alone.insert(0, ("cut: uncut start only", {"lscm": NO_LSCM, "extra_starts": {"uncut": x}}))
-        else:
-            print(f"| {name} | cut: uncut start | – | – | not bijective: {orep['reason']} |")
-        for variant, kw in alone:
-            (y, ref), wall, cpu = timed(refine, Vs, Fs, None, **kw)
-            print(row(name, variant, wall, cpu, ref, metrics.summary(Vs, Fs, y)), flush=True)
+        (y, ref), wall, cpu = timed(refine, Vs, Fs, None, lscm=NO_LSCM)
+        print(row(name, "cut: Tutte only", wall, cpu, ref, metrics.summary(Vs, Fs, y)), flush=True)
 
 
 if __name__ == "__main__":

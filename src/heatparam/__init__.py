@@ -10,8 +10,7 @@ The public API, loaded lazily so that ``heatparam --help`` imports no numerics:
 """
 
 from heatparam.errors import HeatparamError, MeshError, ResourceError
-
-__version__ = "0.1.0"
+from heatparam.version import __version__
 
 __all__ = ["OPTIONS", "HeatparamError", "MeshError", "Options", "ResourceError", "Result", "__version__", "batch",
            "geodesic_distances", "parameterize"]

@@ -49,9 +49,9 @@ import time
 import uuid
 from pathlib import Path, PurePosixPath
 
-from heatparam import __version__
 from heatparam.errors import HeatparamError, ResourceError
 from heatparam.options import Options, make_options
+from heatparam.version import __version__
 
 #: Mesh suffixes searched in folders (heatparam.formats.MESH_SUFFIXES; a test checks they agree).
 MESH_SUFFIXES = (".obj", ".off", ".ply", ".stl", ".glb", ".gltf")

@@ -13,9 +13,9 @@ import os
 import sys
 from pathlib import Path
 
-from heatparam import __version__
 from heatparam.errors import HeatparamError
 from heatparam.options import Option, check_value, cli_options, help_text, make_options, to_cli_terms
+from heatparam.version import __version__
 
 EXIT_BAD_INPUT = 2
 #: the model units the outputs can declare (``formats.units``; listed here so that --help loads nothing)

@@ -197,17 +197,20 @@ def test_large_mesh_whose_conformal_layout_folds_keeps_the_heat_stage(monkeypatc
 def test_seam_trial_on_a_large_mesh_without_a_conformal_start_skips_the_heat_stage(monkeypatch, halftunnel):
     """Case (d): halftunnel counted as large, seams auto: its map without seams is the seams stage's trial and its
     conformal layout is not bijective even repaired, so the trial skips the heat stage (MDS folded there too) and
-    starts from Tutte; the kept (cut) map is bit for bit the one computed with the heat stage."""
+    starts from Tutte; the cut map is kept, as with the heat stage computed (``mds_start='always'``), bijective and
+    as close to an isometry."""
     from heatparam.pipeline import shortcuts
 
     V, F = halftunnel
     monkeypatch.setattr(shortcuts, "CONFORMAL_START_MIN_VERTICES", 100)
-    fast, rf = parameterize(V, F)
-    monkeypatch.setattr(shortcuts, "SKIP_HEAT_IN_SEAM_TRIALS", False)
-    full, ra = parameterize(V, F)
+    fast = parameterize(V, F)
+    full = parameterize(V, F, mds_start="always")
+    rf, ra = fast.report, full.report
     assert rf["method"]["seams"]["used"] and ra["method"]["seams"]["used"]
     assert "geodesics" not in rf["timings_s"] and "geodesics" in ra["timings_s"]
-    assert np.array_equal(fast, full)
+    assert rf["method"]["seams"]["iso_mean_without"] > rf["method"]["seams"]["iso_mean_with"]
+    assert rf["metrics"]["bijective"] and rf["metrics"]["iso_mean"] == pytest.approx(ra["metrics"]["iso_mean"],
+                                                                                        rel=1e-3)
 
 
 def test_large_mesh_whose_conformal_layout_is_repaired_skips_the_heat_stage(monkeypatch):
@@ -444,8 +447,8 @@ def test_seams_decided_on_paused_polishes_keep_the_map(case, halftunnel, halftun
 
 
 def test_a_dropped_cut_trial_frees_its_factorization_before_the_kept_map_is_finished(monkeypatch):
-    """The cut trial pauses without parking (``Polish(park=False)``: it is usually kept and goes on at once); where
-    the map without seams is kept instead (the noisy cylinder with holes), the cut trial and its factorization are
+    """The cut trial pauses without parking (``PolishSettings(park=False)``: it is usually kept and goes on at once);
+    where the map without seams is kept instead (the noisy cylinder with holes), the cut trial and its factorization are
     gone by the time the kept map's polish is finished, and the kept map is the one decided on finished polishes."""
     import weakref
 
@@ -465,7 +468,8 @@ def test_a_dropped_cut_trial_frees_its_factorization_before_the_kept_map_is_fini
 
     def checking(f):
         if f.resume is not None:
-            held_at_finish.append([p() for p in made if p() is not None and not p().park and p().fac is not None])
+            held_at_finish.append([p() for p in made
+                                   if p() is not None and not p().settings.park and p().fac is not None])
         return finished(f)
 
     monkeypatch.setattr(seams, "_finished", checking)

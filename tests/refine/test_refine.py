@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -235,7 +237,7 @@ def test_polish_paused_and_resumed_makes_the_same_iterations(backend):
     uv0 = tutte.tutte(s.V, disk)[: len(s.V)]
     loops = [disk.outer, *disk.holes]
     x_ref, info_ref = newton.polish(uv0, s.F, g, area, loops, backend=backend)
-    run = newton.Polish(uv0, s.F, g, area, loops, backend=backend)
+    run = newton.Polish(uv0, s.F, g, area, loops, newton.PolishSettings(backend=backend))
     pauses = 0
     while not run.run(pause_excess=0.03):
         pauses += 1
@@ -251,7 +253,7 @@ def test_polish_paused_and_resumed_makes_the_same_iterations(backend):
 
 
 def test_polish_paused_without_parking_keeps_its_factorization():
-    """``Polish(park=False)`` (the seams stage's cut trial, usually finished next): while paused it keeps its
+    """``PolishSettings(park=False)`` (the seams stage's cut trial, usually finished next): while paused it keeps its
     factorization, and going on gives the very layout and report of the uninterrupted polish."""
     s = datasets.curved_cap_with_holes(sphere_radius=1.2, h=0.04)
     disk = tutte.build_disk(s.V, s.F)
@@ -259,7 +261,7 @@ def test_polish_paused_without_parking_keeps_its_factorization():
     uv0 = tutte.tutte(s.V, disk)[: len(s.V)]
     loops = [disk.outer, *disk.holes]
     x_ref, info_ref = newton.polish(uv0, s.F, g, area, loops)
-    run = newton.Polish(uv0, s.F, g, area, loops, park=False)
+    run = newton.Polish(uv0, s.F, g, area, loops, newton.PolishSettings(park=False))
     pauses = 0
     while not run.run(pause_excess=0.03):
         pauses += 1
@@ -271,9 +273,9 @@ def test_polish_paused_without_parking_keeps_its_factorization():
 
 
 def test_polish_gives_up_sooner_at_the_barrier_with_fewer_stall_iterations():
-    """``Polish(stall_iters=...)``: the excess cone's isometric layout overlaps itself, so its polish ends pressing
-    against the scaffold's barrier; allowed 2 barrier-limited iterations gaining < tol in a row instead of 5, it
-    stops sooner ("stalled at the barrier", as the levels of a coarse-to-fine polish do) within 1e-6 of the
+    """``PolishSettings(stall_iters=...)``: the excess cone's isometric layout overlaps itself, so its polish ends
+    pressing against the scaffold's barrier; allowed 2 barrier-limited iterations gaining < tol in a row instead of
+    5, it stops sooner ("stalled at the barrier", as the levels of a coarse-to-fine polish do) within 1e-6 of the
     energy, bijective."""
     V, F = excess_cone()
     disk = tutte.build_disk(V, F)
@@ -281,9 +283,10 @@ def test_polish_gives_up_sooner_at_the_barrier_with_fewer_stall_iterations():
     uv0 = tutte.tutte(V, disk)[: len(V)]
     full = newton.Polish(uv0, F, g, area, disk.loops)
     full.run()
-    short = newton.Polish(uv0, F, g, area, disk.loops, stall_iters=2)
+    short = newton.Polish(uv0, F, g, area, disk.loops, newton.PolishSettings(stall_iters=2))
     short.run()
-    assert short.report()["stop"] == "stalled at the barrier" and short.it < full.it, (short.it, full.it)
+    assert short.stop is newton.Stop.STALLED and short.it < full.it, (short.it, full.it)
+    assert short.report()["stop"] == "stalled at the barrier"
     assert short.report()["energy_end"] == pytest.approx(full.report()["energy_end"], rel=1e-6)
     assert start.bijectivity(short.x, F, g) == (0, 0) and metrics.boundary_crossings(short.x, F) == 0
 
@@ -510,14 +513,18 @@ def test_repair_flips_unflips_and_keeps_the_rest():
     assert np.allclose(y[v], s.uv_true[v], atol=1e-9)  # mean value coordinates reproduce the (affine) reference
 
 
+def _coarse_start(V, F, x0, loops, g):
+    """A coarse level's start for the fine polish of (V, F) from ``x0`` (no coarser level of its own)."""
+    return multilevel.CoarseLevel(V, F, x0, loops, g, multilevel.LevelSettings(min_vertices=0)).start()
+
+
 def test_coarse_to_fine_on_a_surface_with_holes_is_bijective():
     s = datasets.curved_cap_with_holes(sphere_radius=1.2, h=0.02)
     g, _ = energy.surface_gradients(s.V, s.F)
     disk = tutte.build_disk(s.V, s.F)
     loops = [disk.outer, *disk.holes]
     x0 = conformal_layout(s.V, s.F)
-    y, info, _ = multilevel.coarse_to_fine(s.V, s.F, x0, loops, g, min_vertices=0, max_iters=200, tol=1e-6,
-                                           backend="auto")
+    y, info = _coarse_start(s.V, s.F, x0, loops, g)
     assert info["used"] and y is not None, info
     assert info["coarse_vertices"] < len(s.V) and info["coarse_polish"]["converged"]
     assert start.bijectivity(y, s.F, g) == (0, 0)
@@ -531,33 +538,31 @@ def cap_from_tutte():
     return s, g, area, [disk.outer, *disk.holes], tutte.tutte(s.V, disk)[: len(s.V)]
 
 
-@pytest.mark.parametrize("provisional_fine", [False, True])
-def test_multilevel_paused_at_its_coarse_level_finishes_as_if_never_paused(cap_from_tutte, monkeypatch,
-                                                                          provisional_fine):
-    """``multilevel_polish(pause_excess, pause_coarse)``: the coarse polish pauses (an iteration gains < 3% of its
-    excess); the provisional map is its prolongation (bijective, reported as paused), waiting unpolished
-    (``PROVISIONAL_FINE`` False, the default) or polished on until the fine level's own pause (True); finishing
-    drops that, finishes the coarse level and polishes the fine level again: the very layout and report of a
-    multilevel polish that never paused."""
+def _levels(s, **kw) -> multilevel.LevelSettings:
+    return multilevel.LevelSettings(min_vertices=len(s.V), **kw)
+
+
+def test_multilevel_paused_at_its_coarse_level_finishes_as_if_never_paused(cap_from_tutte, monkeypatch):
+    """``multilevel_polish`` with ``pause_excess`` and ``pause_coarse``: the coarse polish pauses (an iteration
+    gains < 3% of its excess); the provisional map is its prolongation (bijective, reported as paused), the fine
+    level waiting there unpolished; finishing finishes the coarse level and polishes the fine level from its
+    prolongation: the very layout and report of a multilevel polish that never paused."""
     s, g, area, loops, x0 = cap_from_tutte
     monkeypatch.setattr(multilevel, "COARSE_MIN", 1500)  # 6863 vertices, 466 on the boundary
-    monkeypatch.setattr(multilevel, "PROVISIONAL_FINE", provisional_fine)
-    kw = dict(min_vertices=len(s.V), max_iters=200, tol=1e-6, backend="auto")
-    ref, ml_ref = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
-    run, ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, pause_excess=0.03, pause_coarse=1.0, **kw)
+    ref, ml_ref = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, _levels(s))
+    run, ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area,
+                                           _levels(s, pause_excess=0.03, pause_coarse=1.0))
     assert isinstance(run, multilevel.Levels) and not run.done and run.report()["stop"] == "paused"
     assert start.bijectivity(run.x, s.F, g) == (0, 0)
-    coarse_its, fine_its = ml["coarse_polish"]["iterations"], run.fine.it
+    coarse_its = ml["coarse_polish"]["iterations"]
     assert ml["coarse_polish"]["stop"] == "paused" and coarse_its < ml_ref["coarse_polish"]["iterations"]
-    assert (fine_its > 0) == provisional_fine
+    assert run.fine.it == 0
     rep = run.report()  # a finite energy also before any fine iteration (JSON has no NaN)
-    assert np.isfinite(rep["energy_start"]) and np.isfinite(rep["energy_end"]) and rep["iterations"] == fine_its
-    # a pause asked again: the provisional map goes on (True) or keeps waiting (False)
-    assert not run.run(pause_excess=0.03) and (run.fine.it > fine_its) == provisional_fine
-    fine_its = run.fine.it
+    assert np.isfinite(rep["energy_start"]) and np.isfinite(rep["energy_end"]) and rep["iterations"] == 0
+    assert not run.run(pause_excess=0.03) and run.fine.it == 0  # a pause asked again: it keeps waiting
     assert run.run() and run.done
     assert np.array_equal(run.x, ref.x)
-    assert ml["provisional"] == {"coarse_iterations": coarse_its, "fine_iterations": fine_its}
+    assert ml["provisional"] == {"coarse_iterations": coarse_its, "fine_iterations": 0}
     for key in ("coarse_vertices", "prolongation_flips", "repair_rounds", "fine_tol", "used"):
         assert ml[key] == ml_ref[key], key
     for key in ("iterations", "converged", "stop", "energy_end"):
@@ -565,45 +570,60 @@ def test_multilevel_paused_at_its_coarse_level_finishes_as_if_never_paused(cap_f
         assert run.report()[key] == ref.report()[key], key
 
 
-def test_fine_level_starts_with_the_scaffold_its_converged_coarse_level_ended_with(cap_from_tutte, monkeypatch):
+@pytest.fixture(scope="module")
+def cap_levels(cap_from_tutte):
+    """The cap's coarse level (1500 vertices) polished and prolongated: (the Multilevel, the fine start)."""
+    s, g, area, loops, x0 = cap_from_tutte
+    saved, multilevel.COARSE_MIN = multilevel.COARSE_MIN, 1500
+    try:
+        ml = multilevel.Multilevel(s.V, s.F, x0, loops, g, area, _levels(s))
+        y = ml.coarse_start()
+    finally:
+        multilevel.COARSE_MIN = saved
+    assert y is not None and ml.report["coarse_polish"]["converged"], ml.report
+    return ml, y
+
+
+def _polished(cap_from_tutte, y, settings) -> newton.Polish:
+    s, g, area, loops, _ = cap_from_tutte
+    run = newton.Polish(y, s.F, g, area, loops, settings)
+    run.run()
+    return run
+
+
+def test_fine_level_starts_with_the_scaffold_its_converged_coarse_level_ended_with(cap_from_tutte, cap_levels):
     """After a converged coarse level the fine polish starts with the scaffold's weight there (the lightest: a
     converged polish ends at it), not the stiffest, and so does not spend a Newton iteration only to lighten it:
-    fewer fine iterations than a stiff start, the same minimum (where a small step is confirmed at the lightest
-    weight: ``FINE_CONFIRM_LIGHT``)."""
-    s, g, area, loops, x0 = cap_from_tutte
-    monkeypatch.setattr(multilevel, "COARSE_MIN", 1500)  # 6863 vertices, 466 on the boundary
-    monkeypatch.setattr(multilevel, "FINE_CONFIRM_LIGHT", True)
-    kw = dict(min_vertices=len(s.V), max_iters=200, tol=1e-6, backend="auto")
-    run, ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
-    assert ml["coarse_polish"]["converged"]
-    assert ml["coarse_polish"]["scaffold_weight"] == pytest.approx(scaffold.SCAFFOLD_WEIGHT_MIN)
-    monkeypatch.setattr(multilevel, "FINE_SCAFFOLD", False)
-    stiff, _ = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
-    assert run.report()["converged"] and stiff.report()["converged"]
-    assert run.it < stiff.it, (run.it, stiff.it)
-    assert run.report()["energy_end"] == pytest.approx(stiff.report()["energy_end"], rel=1e-4)
+    fewer fine iterations than a stiff start, the same minimum."""
+    ml, y = cap_levels
+    fine = ml.fine_settings(y)
+    assert ml.report["coarse_polish"]["scaffold_weight"] == pytest.approx(scaffold.SCAFFOLD_WEIGHT_MIN)
+    assert fine.scaffold_weight == ml.report["coarse_polish"]["scaffold_weight"] and fine.keep_scaffold
+    light = _polished(cap_from_tutte, y, replace(fine, confirm_light=True))
+    stiff = _polished(cap_from_tutte, y, replace(fine, confirm_light=True, scaffold_weight=1.0, keep_scaffold=False,
+                                                 scaffold=newton.ScaffoldUse.ALWAYS))
+    assert light.converged and stiff.converged
+    assert light.it < stiff.it, (light.it, stiff.it)
+    assert light.report()["energy_end"] == pytest.approx(stiff.report()["energy_end"], rel=1e-4)
 
 
 @pytest.mark.skipif("pardiso" not in available_backends(), reason="pypardiso not installed")
 def test_fine_hessian_analysed_during_the_coarse_levels_gives_the_same_polish(cap_from_tutte, monkeypatch):
-    """``PREPARE_FINE``: the fine level's Hessian pattern and PARDISO analysis are made on another thread while the
-    coarse level is polished, and its first factorization is then numerical only: the very same layout and
-    report as without."""
+    """The fine level's Hessian pattern and PARDISO analysis are made on another thread while the coarse level is
+    polished, and its first factorization is then numerical only: the very same layout and report as without."""
     s, g, area, loops, x0 = cap_from_tutte
     monkeypatch.setattr(multilevel, "COARSE_MIN", 1500)
-    kw = dict(min_vertices=len(s.V), max_iters=200, tol=1e-6, backend="pardiso")
-    made = []
-    monkeypatch.setattr(multilevel, "prepare_hessian", lambda *a: made.append(newton.prepare_hessian(*a)) or made[-1])
-    runs = {}
-    for prepare in (False, True):
-        monkeypatch.setattr(multilevel, "PREPARE_FINE", prepare)
-        runs[prepare], ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
-        assert ml["used"]
-    assert len(made) == 1 and made[0].analysis.done()
-    used = made[0].analysis.result()
-    assert not used.symbolic  # numerically factorized by the fine polish: the analysis was used
-    assert np.array_equal(runs[True].x, runs[False].x)
-    assert runs[True].report() | {"seconds": 0} == runs[False].report() | {"seconds": 0}
+    settings = _levels(s, backend="pardiso")
+    ml = multilevel.Multilevel(s.V, s.F, x0, loops, g, area, settings)
+    y = ml.coarse_start()
+    assert y is not None and ml.prepared is not None
+    analysis = ml.prepared.analysis
+    prepared = ml.fine_polish(y)
+    prepared.run()
+    assert analysis.done() and not analysis.result().symbolic  # numerically factorized by the fine polish: used
+    plain = _polished(cap_from_tutte, y, ml.fine_settings(y))
+    assert np.array_equal(prepared.x, plain.x)
+    assert prepared.report() | {"seconds": 0} == plain.report() | {"seconds": 0}
     # an analysis that fails on its thread only loses the head start
     from heatparam import solvers
 
@@ -615,51 +635,46 @@ def test_fine_hessian_analysed_during_the_coarse_levels_gives_the_same_polish(ca
         return real(*a, **k)
 
     monkeypatch.setattr(newton, "Factor", failing)
-    again, ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
-    assert ml["used"] and np.array_equal(again.x, runs[False].x)
+    again, report = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, settings)
+    assert report["used"] and np.array_equal(again.x, plain.x)
 
 
-def test_fine_level_stops_without_confirming_at_the_lightest_scaffold(cap_from_tutte, monkeypatch):
+def test_fine_level_stops_without_confirming_at_the_lightest_scaffold(cap_from_tutte, cap_levels):
     """A fine level polished from a coarse one (its tolerance loosened) stops at its first uncut step that gains
-    less than that tolerance, whatever the scaffold's weight (``FINE_CONFIRM_LIGHT`` False): started stiff, it saves
-    the iteration that only confirmed the stop at the lightest weight, and ends at the same minimum, bijective."""
-    s, g, area, loops, x0 = cap_from_tutte
-    monkeypatch.setattr(multilevel, "COARSE_MIN", 1500)
-    monkeypatch.setattr(multilevel, "FINE_SCAFFOLD", False)  # a stiff fine start, as after a stall at the barrier
-    kw = dict(min_vertices=len(s.V), max_iters=200, tol=1e-6, backend="auto")
-    runs = {}
-    for confirm in (True, False):
-        monkeypatch.setattr(multilevel, "FINE_CONFIRM_LIGHT", confirm)
-        runs[confirm], ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
-        assert ml["used"] and ml["fine_tol"] > kw["tol"]
-    light, stiff = runs[True].report(), runs[False].report()
-    assert stiff["converged"] and light["converged"]
-    assert stiff["iterations"] < light["iterations"], (stiff["iterations"], light["iterations"])
-    assert stiff["scaffold_weight"] > light["scaffold_weight"]  # stopped before the weight was lightened
-    assert stiff["energy_end"] == pytest.approx(light["energy_end"], rel=1e-4)
+    less than that tolerance, whatever the scaffold's weight (``confirm_light`` False): started stiff, it saves the
+    iteration that only confirmed the stop at the lightest weight, and ends at the same minimum, bijective."""
+    s, g, _, _, _ = cap_from_tutte
+    ml, y = cap_levels
+    fine = ml.fine_settings(y)
+    assert not fine.confirm_light and fine.tol > 1e-6
+    stiff = replace(fine, scaffold_weight=1.0, scaffold=newton.ScaffoldUse.ALWAYS, keep_scaffold=False)
+    runs = {confirm: _polished(cap_from_tutte, y, replace(stiff, confirm_light=confirm)) for confirm in (True, False)}
+    light, quick = runs[True].report(), runs[False].report()
+    assert quick["converged"] and light["converged"]
+    assert quick["iterations"] < light["iterations"], (quick["iterations"], light["iterations"])
+    assert quick["scaffold_weight"] > light["scaffold_weight"]  # stopped before the weight was lightened
+    assert quick["energy_end"] == pytest.approx(light["energy_end"], rel=1e-4)
     x = runs[False].x
     assert metrics.boundary_crossings(x, s.F) == 0 and (energy.det(energy.jacobians(x, s.F, g)) > 0).all()
 
 
-def test_fine_level_without_a_scaffold_until_boundaries_meet(cap_from_tutte, monkeypatch):
+def test_fine_level_without_a_scaffold_until_boundaries_meet(cap_from_tutte, cap_levels, monkeypatch):
     """After a converged coarse level the fine polish builds no scaffold while no step makes boundaries cross
-    (``multilevel.FINE_BARE``) and ends at the scaffolded fine polish's minimum, bijective; where the first step
-    would cross (the excess cone from a Tutte start, whose isometric layout overlaps itself) that iteration is done
-    again with the scaffold and the polish ends where the scaffolded one does."""
-    s, g, area, loops, x0 = cap_from_tutte
-    monkeypatch.setattr(multilevel, "COARSE_MIN", 1500)
-    kw = dict(min_vertices=len(s.V), max_iters=200, tol=1e-6, backend="auto")
+    (``ScaffoldUse.UNTIL_CROSSING``) and ends at the scaffolded fine polish's minimum, bijective; where the first
+    step would cross (the excess cone from a Tutte start, whose isometric layout overlaps itself) that iteration is
+    done again with the scaffold and the polish ends where the scaffolded one does."""
+    s, g, _, _, _ = cap_from_tutte
+    ml, y = cap_levels
+    fine = ml.fine_settings(y)
+    assert fine.scaffold is newton.ScaffoldUse.UNTIL_CROSSING
     built = []
     real = newton.build_scaffold
     monkeypatch.setattr(newton, "build_scaffold", lambda *a, **k: built.append(1) or real(*a, **k))
-    bare, ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
-    assert ml["coarse_polish"]["converged"] and bare.report()["scaffold_from_iteration"] is None
-    n_bare = len(built)  # the coarse level's scaffolds only
-    monkeypatch.setattr(multilevel, "FINE_BARE", False)
-    built.clear()
-    scaf, _ = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
-    assert len(built) > n_bare  # the same coarse level, and the scaffolded fine level's own
-    assert bare.report()["converged"] and scaf.report()["converged"]
+    bare = _polished(cap_from_tutte, y, fine)
+    assert not built and bare.report()["scaffold_from_iteration"] is None
+    scaf = _polished(cap_from_tutte, y, replace(fine, scaffold=newton.ScaffoldUse.ALWAYS))
+    assert built
+    assert bare.converged and scaf.converged
     assert bare.report()["energy_end"] == pytest.approx(scaf.report()["energy_end"], rel=1e-5)
     assert metrics.boundary_crossings(bare.x, s.F) == 0
     assert (energy.det(energy.jacobians(bare.x, s.F, g)) > 0).all()
@@ -670,48 +685,38 @@ def test_fine_level_without_a_scaffold_until_boundaries_meet(cap_from_tutte, mon
     g, area = energy.surface_gradients(V, F)
     cone_loops = boundary_loops(F)
     runs = {}
-    for mode in ("until crossing", True):
-        runs[mode] = newton.Polish(x, F, g, area, cone_loops, scaffold=mode)
+    for mode in (newton.ScaffoldUse.UNTIL_CROSSING, newton.ScaffoldUse.ALWAYS):
+        runs[mode] = newton.Polish(x, F, g, area, cone_loops, newton.PolishSettings(scaffold=mode))
         runs[mode].run()
-    switched, scaffolded = runs["until crossing"].report(), runs[True].report()
+    switched, scaffolded = runs[newton.ScaffoldUse.UNTIL_CROSSING].report(), runs[newton.ScaffoldUse.ALWAYS].report()
     assert switched["scaffold_from_iteration"] == 1
     assert switched["iterations"] == scaffolded["iterations"]
     assert switched["energy_end"] == pytest.approx(scaffolded["energy_end"], rel=1e-9)
 
 
-def test_levels_stall_rules_and_the_fine_scaffold_after_a_stall(cap_from_tutte, monkeypatch):
+def test_levels_stall_rules_and_the_fine_scaffold_after_a_stall(cap_from_tutte, cap_levels):
     """The levels of a coarse-to-fine polish give up at the barrier after ``COARSE_STALL_ITERS`` (coarse) and
     ``FINE_STALL_ITERS`` (the fine level polished from one) barrier-limited iterations; after a coarse level that
-    stalled at the barrier the fine polish starts stiff, not bare, and keeps its scaffold while it holds
-    (``FINE_KEEP_AFTER_STALL``); a polish without a coarse level keeps ``newton.STALL_ITERS``."""
+    stalled at the barrier the fine polish starts stiff, not bare, and keeps its scaffold while it holds; a polish
+    without a coarse level keeps ``newton.STALL_ITERS``."""
     s, g, area, loops, x0 = cap_from_tutte
-    monkeypatch.setattr(multilevel, "COARSE_MIN", 1500)
-    made = []
-    real = newton.Polish
-
-    def recording(*a, **k):
-        p = real(*a, **k)
-        made.append((len(a[0]), k))
-        return p
-
-    monkeypatch.setattr(multilevel, "Polish", recording)
-    kw = dict(min_vertices=len(s.V), max_iters=200, tol=1e-6, backend="auto")
-    _, ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
-    (nc, coarse), (nf, fine) = made
-    assert nc == ml["coarse_vertices"] < nf == len(s.V)
-    assert coarse["stall_iters"] == multilevel.COARSE_STALL_ITERS and fine["stall_iters"] == multilevel.FINE_STALL_ITERS
-    stalled = dict(ml, coarse_polish=dict(ml["coarse_polish"], converged=False, stop="stalled at the barrier"))
-    y = x0.copy()
-    monkeypatch.setattr(multilevel, "coarse_to_fine", lambda *a, **k: (y, stalled, None))
-    made.clear()
-    multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
-    (_, after_stall), = made
-    assert after_stall["keep_scaffold"] and after_stall["scaffold_weight"] == 1.0 and after_stall["scaffold"] is True
-    assert after_stall["tol"] == pytest.approx(1e-6 * multilevel.MULTILEVEL_FINE_TOL_FACTOR)
-    made.clear()
-    multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **dict(kw, min_vertices=0))  # one level
-    (_, single), = made
-    assert single["stall_iters"] == newton.STALL_ITERS
+    ml, y = cap_levels
+    assert ml.coarse.run.settings.stall_iters == multilevel.COARSE_STALL_ITERS
+    assert ml.fine_settings(y).stall_iters == multilevel.FINE_STALL_ITERS
+    stalled = multilevel.Multilevel(s.V, s.F, x0, loops, g, area, _levels(s))
+    stalled.coarse, stalled.report = ml.coarse, dict(ml.report)
+    stalled.report["coarse_polish"] = dict(ml.report["coarse_polish"], converged=False)
+    saved = ml.coarse.run.stop
+    try:
+        ml.coarse.run.stop = newton.Stop.STALLED
+        after_stall = stalled.fine_settings(y)
+    finally:
+        ml.coarse.run.stop = saved
+    assert after_stall.keep_scaffold and after_stall.scaffold_weight == 1.0
+    assert after_stall.scaffold is newton.ScaffoldUse.ALWAYS
+    assert after_stall.tol == pytest.approx(1e-6 * multilevel.MULTILEVEL_FINE_TOL_FACTOR)
+    single = multilevel.Multilevel(s.V, s.F, x0, loops, g, area, multilevel.LevelSettings(min_vertices=0))
+    assert single.coarse_start() is None and single.fine_settings(None).stall_iters == newton.STALL_ITERS
 
 
 def test_multilevel_coarse_level_not_kept_paused_below_pause_coarse(cap_from_tutte, monkeypatch):
@@ -719,10 +724,9 @@ def test_multilevel_coarse_level_not_kept_paused_below_pause_coarse(cap_from_tut
     :class:`newton.Polish` comes back, the layout of an unpaused multilevel polish."""
     s, g, area, loops, x0 = cap_from_tutte
     monkeypatch.setattr(multilevel, "COARSE_MIN", 1500)  # 6863 vertices, 466 on the boundary
-    kw = dict(min_vertices=len(s.V), max_iters=200, tol=1e-6, backend="auto")
-    ref, _ = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, **kw)
-    run, ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, pause_excess=0.03, pause_coarse=100.0,
-                                           **kw)
+    ref, _ = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area, _levels(s))
+    run, ml = multilevel.multilevel_polish(s.V, s.F, x0, loops, g, area,
+                                           _levels(s, pause_excess=0.03, pause_coarse=100.0))
     assert isinstance(run, newton.Polish) and "provisional" not in ml and ml["coarse_polish"]["stop"] != "paused"
     run.run()
     assert run.done and np.array_equal(run.x, ref.x)
@@ -740,8 +744,7 @@ def test_coarse_to_fine_drops_a_coarse_level_that_stalls_far_from_its_minimum():
     disk = tutte.build_disk(Vs, Fs)
     g, _ = energy.surface_gradients(Vs, Fs)
     x0 = tutte.tutte(Vs, disk)[: len(Vs)]
-    y, info, _ = multilevel.coarse_to_fine(Vs, Fs, x0, disk.loops, g, min_vertices=0, max_iters=200, tol=1e-6,
-                                           backend="auto")
+    y, info = _coarse_start(Vs, Fs, x0, disk.loops, g)
     cp = info["coarse_polish"]
     assert y is None and not info["used"] and "coarse polish stopped" in info["reason"], info
     assert not cp["converged"] and cp["energy_end"] - 1 > multilevel.COARSE_MIN_GAIN * (cp["energy_start"] - 1)
@@ -759,8 +762,7 @@ def test_coarse_to_fine_untangles_what_the_mean_value_repair_cannot(monkeypatch)
     calls = []
     real = multilevel.repair_flips
     monkeypatch.setattr(multilevel, "repair_flips", lambda *a: calls.append(real(*a)) or calls[-1])
-    y, info, _ = multilevel.coarse_to_fine(V, F, x0, loops, g, min_vertices=0, max_iters=200, tol=1e-6,
-                                           backend="auto")
+    y, info = _coarse_start(V, F, x0, loops, g)
     assert [c[0] is None for c in calls] == [True, True]  # both mean value repairs failed
     assert info["used"] and y is not None, info
     assert info["repair_weights"].startswith("untangled") and info["prolongation_flips"] > 0
@@ -844,9 +846,8 @@ def test_multilevel_polish_recurses_and_matches_single_level(monkeypatch):
     loops = [disk.outer, *disk.holes]
     x0 = conformal_layout(V, F)
     monkeypatch.setattr(multilevel, "COARSE_MIN", 500)
-    kw = dict(max_iters=200, tol=1e-6, backend="auto")
-    r1, ml1 = multilevel.multilevel_polish(V, F, x0, loops, g, area, min_vertices=0, **kw)
-    r3, ml3 = multilevel.multilevel_polish(V, F, x0, loops, g, area, min_vertices=1000, **kw)
+    r1, ml1 = multilevel.multilevel_polish(V, F, x0, loops, g, area, multilevel.LevelSettings(min_vertices=0))
+    r3, ml3 = multilevel.multilevel_polish(V, F, x0, loops, g, area, multilevel.LevelSettings(min_vertices=1000))
     x3, p1, p3 = r3.x, r1.report(), r3.report()
     assert not ml1["used"] and ml1["reason"] == "small mesh"
     assert ml3["used"] and ml3["coarse_multilevel"]["used"], ml3
@@ -948,7 +949,7 @@ def test_a_step_that_leaves_boundaries_touching_is_undone(monkeypatch):
     monkeypatch.setattr(newton, "build_scaffold", failing)
     p = newton.Polish(x0, s.F, g, area, disk.loops)
     p.run()
-    assert p.stop.startswith("scaffold failed") and "the layout before it is kept" in p.stop
+    assert p.stop is newton.Stop.SCAFFOLD_FAILED and "the layout before it is kept" in p.report()["stop"]
     assert np.array_equal(p.x, built[-1]) and p.it == 3
     assert p.report()["energy_end"] * 4 == pytest.approx(newton.symmetric_dirichlet(
         newton.jacobians(p.x, s.F, g), area / area.sum())[0])
@@ -972,7 +973,7 @@ def test_coarse_to_fine_drops_a_coarse_level_whose_scaffold_failed(monkeypatch):
 
     monkeypatch.setattr(newton, "build_scaffold", failing)
     monkeypatch.setattr(multilevel, "prolongate", lambda *a: pytest.fail("prolongated a dropped level"))
-    y, info, _ = multilevel.coarse_to_fine(V, F, x0, disk.loops, g, min_vertices=0, max_iters=200, tol=1e-6,
-                                           backend="auto")
+    level = multilevel.CoarseLevel(V, F, x0, disk.loops, g, multilevel.LevelSettings(min_vertices=0))
+    y, info = level.start()
     assert y is None and not info["used"] and "boundaries touch" in info["reason"], info
-    assert info["coarse_polish"]["stop"].startswith("scaffold failed")
+    assert level.run.stop is newton.Stop.SCAFFOLD_FAILED and info["coarse_polish"]["stop"].startswith("scaffold")

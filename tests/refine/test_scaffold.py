@@ -113,7 +113,8 @@ def test_polish_keeps_its_scaffold_and_so_the_factors_analysis(monkeypatch):
         monkeypatch.setattr(scaffold, "SCAFFOLD_KEEP", keep)
         built.clear()
         fresh_factors.clear()
-        run = newton.Polish(x0, F, g, area, boundary_loops(F), tol=1e-7, backend="pardiso", keep_scaffold=True)
+        run = newton.Polish(x0, F, g, area, boundary_loops(F),
+                            newton.PolishSettings(tol=1e-7, backend="pardiso", keep_scaffold=True))
         run.run()
         runs[keep] = (len(built), len(fresh_factors), run.report())
     (b_kept, f_kept, rep_kept), (b_fresh, f_fresh, rep_fresh) = runs[default], runs[0.0]

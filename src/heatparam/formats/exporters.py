@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from heatparam import __version__
 from heatparam.errors import HeatparamError
+from heatparam.version import __version__
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,23 @@ from heatparam import interrupt
 from heatparam.errors import HeatparamError
 
 
+def current_umask() -> int:
+    """The process umask (read without changing it where /proc allows, else set-and-restore)."""
+    with contextlib.suppress(OSError, ValueError):
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def file_mode() -> int:
+    """Mode of a new output file: 0o666 less the umask."""
+    return 0o666 & ~current_umask()
+
+
 @contextlib.contextmanager
 def atomic_write(path: str | os.PathLike, mode: str = "w"):
     """Open a temporary file beside ``path``; on success rename it over ``path``, on failure delete it.
@@ -25,8 +42,6 @@ def atomic_write(path: str | os.PathLike, mode: str = "w"):
         raise HeatparamError(f"cannot write {p}: folder {p.parent} does not exist")
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
     try:
-        from heatparam.formats.outputs import file_mode
-
         os.chmod(tmp, file_mode())  # mkstemp makes 0600: outputs get 0666 & ~umask like any program's
         with os.fdopen(fd, mode) as fh:
             yield fh

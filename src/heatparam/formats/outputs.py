@@ -20,6 +20,7 @@ from pathlib import Path
 
 from heatparam.errors import HeatparamError
 from heatparam.formats.exporters import EXPORTERS, by_suffix, map_formats
+from heatparam.formats.files import file_mode
 
 
 @dataclass(frozen=True)
@@ -28,23 +29,6 @@ class OutputPlan:
 
     path: Path
     format: str
-
-
-def current_umask() -> int:
-    """The process umask (read without changing it where /proc allows, else set-and-restore)."""
-    with contextlib.suppress(OSError, ValueError):
-        with open("/proc/self/status", encoding="ascii") as fh:
-            for line in fh:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-def file_mode() -> int:
-    """Mode of a new output file: 0o666 less the umask."""
-    return 0o666 & ~current_umask()
 
 
 def _extensions(allowed: Collection[str]) -> str:

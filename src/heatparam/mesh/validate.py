@@ -175,15 +175,15 @@ def check_edges(edges: Edges) -> None:
     """Manifold edges (at most two faces) and consistent orientation (the two half-edges run opposite ways)."""
     if (edges.count > 2).any():
         raise TopologyError(
-            f"{int((edges.count > 2).sum())} non-manifold edges (shared by more than two faces)"
-            " — repair the mesh (split non-manifold edges, remove duplicate faces) first"
+            f"{int((edges.count > 2).sum())} non-manifold edges (shared by more than two faces)",
+            "repair the mesh (split non-manifold edges, remove duplicate faces) first"
         )
     h1, h2 = edges.interior_pairs
     same_way = int((edges.he[h1, 0] == edges.he[h2, 0]).sum())
     if same_way:
         raise TopologyError(
             f"{same_way} edges run the same way in both of their faces: the faces are inconsistently"
-            " oriented (or the surface is non-orientable) — reorient the faces first"
+            " oriented (or the surface is non-orientable)", "reorient the faces first"
         )
 
 
@@ -209,7 +209,7 @@ def check_vertex_fans(F: np.ndarray, edges: Edges) -> None:
     if nonman_v.any():
         raise TopologyError(
             f"{int(nonman_v.sum())} non-manifold vertices (faces meeting at a single vertex, first: vertex "
-            f"{int(np.argmax(nonman_v))}) — split them or remove the extra fans first"
+            f"{int(np.argmax(nonman_v))})", "split them or remove the extra fans first"
         )
 
 
@@ -222,19 +222,19 @@ def check_connected(edges: Edges, referenced: np.ndarray) -> None:
     ncomp -= n - int(referenced.sum())
     if ncomp > 1:
         raise TopologyError(
-            f"the mesh has {ncomp} connected components — split it and parameterize each part separately"
+            f"the mesh has {ncomp} connected components", "split it and parameterize each part separately"
         )
 
 
 def check_flattenable(edges: Edges, referenced: np.ndarray, loops: list[np.ndarray], m: int) -> None:
     """A border (not closed) and no handles (genus 0: Euler characteristic 2 − loops)."""
     if edges.n_boundary == 0:
-        raise TopologyError("closed mesh — cut it open first (it has no boundary, so it cannot be flattened)")
+        raise TopologyError("closed mesh", "cut it open first (it has no boundary, so it cannot be flattened)")
     chi = int(referenced.sum()) - len(edges.starts) + m
     genus2 = 2 - len(loops) - chi
     if genus2 > 0:
         raise TopologyError(
-            f"the surface has {genus2 // 2 or 1} handle(s) (genus > 0) — cut it into a disk (with holes) first"
+            f"the surface has {genus2 // 2 or 1} handle(s) (genus > 0)", "cut it into a disk (with holes) first"
         )
 
 
@@ -276,5 +276,5 @@ def check_not_nearly_closed(V: np.ndarray, info: MeshInfo) -> None:
     if closure < NEARLY_CLOSED_RATIO:
         raise TopologyError(
             f"nearly closed surface (outer border length²/area = {closure:.2f} < {NEARLY_CLOSED_RATIO}): it "
-            "wraps around and cannot be flattened without huge distortion — cut it open or segment it first"
+            "wraps around and cannot be flattened without huge distortion", "cut it open or segment it first"
         )

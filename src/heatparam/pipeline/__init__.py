@@ -19,6 +19,8 @@ Each stage returns its value and its part of the report; the report is assembled
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from heatparam.errors import HeatparamError, TopologyError
@@ -26,12 +28,13 @@ from heatparam.heat import check_time_step
 from heatparam.memory import require
 from heatparam.options import Options, make_options
 from heatparam.pipeline.atlas_stage import atlas_result
-from heatparam.pipeline.heat_stage import FillSurface, decide_fill, mds_map
+from heatparam.pipeline.heat_stage import FillSurface, Layout, decide_fill, mds_map
 from heatparam.pipeline.report import Flat, Result, build_report, map_metrics, method_report
 from heatparam.pipeline.seams import seam_pause, seams_stage
 from heatparam.pipeline.shortcuts import heat_stage_optional, start_checks
 from heatparam.pipeline.surface import Surface
 from heatparam.progress import Progress
+from heatparam.refine import NO_PAUSE, Pausing, Refinement, RefineParams, polish_bytes
 
 #: Peak memory of the pipeline without the refinement, per vertex (landmark path): ``refine none`` peaked at
 #: 3.5-3.9 KB per vertex on camelhead↑727k and 4.4-5.9 KB on camelhead↑182k, interpreter and libraries included
@@ -77,7 +80,7 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     try:
         return _disk(V, F, opts, prog)
     except TopologyError as exc:  # closed, handles, several parts, non-manifold: an atlas of disk charts
-        return _atlas(V, F, opts, prog, str(exc).split(" — ")[0])
+        return _atlas(V, F, opts, prog, exc.reason)
 
 
 def parameterize_disk(V: np.ndarray, F: np.ndarray, options: Options | None = None, **kwargs) -> Result:
@@ -96,9 +99,7 @@ def _disk(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress) -> Result
         surface, comp, info = Surface.validated(V, F)
     _check_memory(len(V), len(F), opts)
     check_time_step(opts.time_step, info.diameter * surface.frame.unit)
-    pause, coarse = seam_pause(surface, opts)
-    sr = seams_stage(surface, opts, prog, flatten(surface, opts, prog, pause_excess=pause, pause_coarse=coarse),
-                     flatten)
+    sr = seams_stage(surface, opts, prog, flatten(surface, opts, prog, pausing=seam_pause(surface, opts)), flatten)
     flat = sr.uncut  # finished when kept; possibly paused when the cut map won (seams_stage)
     if surface.frame.exponent:  # back to model units (exact: × a power of two)
         flat, sr = _to_model(flat, surface.frame), sr._replace(flat=_to_model(sr.flat, surface.frame))
@@ -131,8 +132,6 @@ def _to_model(flat: Flat, frame) -> Flat:
 
 def _check_memory(n: int, m: int, opts: Options) -> None:
     """Refuse at once, not after minutes of work, what memory could not hold."""
-    from heatparam.refine import polish_bytes
-
     raw = RAW_BYTES_PER_VERTEX * n
     require(raw, f"parameterizing {n} vertices", "decimate the mesh or split it into patches")
     if opts.refine != "none":
@@ -140,67 +139,85 @@ def _check_memory(n: int, m: int, opts: Options) -> None:
                 "use refine='none' (the raw MDS map) or decimate the mesh")
 
 
-def flatten(surface: Surface, opts: Options, prog: Progress, seamed: bool = False,
-            starts: dict[str, np.ndarray] | None = None, pause_excess: float = 0.0, pause_coarse: float = 0.0,
-            pause_park: bool = True) -> Flat:
+def flatten(surface: Surface, opts: Options, prog: Progress, *, seamed: bool = False,
+            starts: dict[str, np.ndarray] | None = None, pausing: Pausing = NO_PAUSE) -> Flat:
     """The stages on one surface (``seamed``: cut open by the seams stage, whose seams a fill would close again;
-    ``starts``: further named start layouts (n,2) for the refinement, e.g. the uncut map with its slits opened;
-    ``pause_excess`` > 0: the polish may pause once an iteration gains less than that fraction of the energy's
-    excess over an isometry, and the Flat's ``resume`` finishes it: the seams stage decides on paused maps;
-    ``pause_coarse`` > 0: its coarse levels may pause too while their iso mean exceeds it,
-    ``refine.multilevel.Levels``; ``pause_park`` False: the paused fine polish keeps its factorization, for a trial
-    that is usually finished next).
-    """
-    from heatparam.refine import Refinement, RefineParams
-
-    with prog.stage("fill decision"):
-        fill_used, fill_reason = decide_fill(opts, surface, seamed)
-    check = start_checks(surface, opts, prog, seamed, trial=pause_excess > 0)
-    params = RefineParams.from_options(opts)
-
-    def without_heat_stage(why: str, fill: dict, warnings: list[str]) -> Flat:
-        """The refinement from the conformal layout or Tutte, the heat stage not computed (``why``)."""
-        with prog.stage("refine"):
-            rf = Refinement(surface.V, surface.F, None, params, prog, surface.conformal, check.lscm,
-                            surface.gradients(), starts, pause_excess, pause_coarse, pause_park)
-        return _refined(surface, opts, prog, rf, None, why, fill, None, warnings)
-
-    if check.skipped is not None:
-        fill = {"used": False, "reason": fill_reason, "skipped": check.skipped} if fill_used else \
-            {"used": False, "reason": fill_reason}
-        return without_heat_stage(check.skipped, fill, [])
-    try:
-        m = mds_map(surface, opts, prog, fill_used, fill_reason)
-    except HeatparamError as exc:
-        if opts.refine == "none" or opts.mds_start != "auto" or not heat_stage_optional(opts):
-            raise  # the heat stage was asked for (or is the map itself): its failure is the answer
-        # otherwise it only offers a start: the refinement starts from the conformal layout or Tutte
-        why = (f"skipped: the heat stage failed ({exc}); the refinement starts from the conformal layout, or Tutte "
-               "when it is not bijective")
-        return without_heat_stage(why, {"used": False, "reason": fill_reason, "skipped": why},
-                                  [f"the heat stage failed ({exc}): the map starts without MDS"])
-    if opts.refine == "none":
-        summary = map_metrics(surface.V, surface.F, m.uv, prog, m.layout)
-        method = method_report(opts, m.layout, None, m.fill, {"method": opts.refine})
-        return Flat(m.uv, summary, method, m.layout, m.fill_surface, m.warnings)
-    with prog.stage("refine"):
-        rf = Refinement(surface.V, surface.F, m.uv, params, prog, surface.conformal, check.lscm,
-                        surface.gradients(), starts, pause_excess, pause_coarse, pause_park)
-    return _refined(surface, opts, prog, rf, m.layout, None, m.fill, m.fill_surface, m.warnings)
+    ``starts``: further named start layouts (n,2) for the refinement; ``pausing``: how the polish may pause,
+    ``refine.Pausing``: the Flat's ``resume`` then finishes it, so that the seams stage decides on paused maps)."""
+    return _Flattening(surface, opts, prog, starts, pausing).run(seamed)
 
 
-def _refined(surface: Surface, opts: Options, prog: Progress, rf, layout, skipped, fill, fill_surface,
-             warnings: list[str]) -> Flat:
-    """The Flat of a refinement (``refine.Refinement``), with a ``resume`` that finishes it when it paused."""
-    summary = map_metrics(surface.V, surface.F, rf.x, prog, layout)
-    method = method_report(opts, layout, skipped, fill, rf.report())
+class _Flattening:
+    """:func:`flatten`: the fill decision, the start checks, the heat stage (when it can win), the refinement."""
 
-    def resume() -> Flat:
-        with prog.stage("refine"):
-            rf.run()
-        return _refined(surface, opts, prog, rf, layout, skipped, fill, fill_surface, warnings)
+    def __init__(self, surface: Surface, opts: Options, prog: Progress, starts: dict[str, np.ndarray] | None,
+                 pausing: Pausing):
+        self.surface, self.opts, self.prog, self.starts, self.pausing = surface, opts, prog, starts, pausing
 
-    return Flat(rf.x, summary, method, layout, fill_surface, warnings, None if rf.done else resume)
+    def run(self, seamed: bool) -> Flat:
+        opts, prog = self.opts, self.prog
+        with prog.stage("fill decision"):
+            fill_used, fill_reason = decide_fill(opts, self.surface, seamed)
+        check = start_checks(self.surface, opts, prog, seamed, trial=self.pausing.excess > 0)
+        if check.skipped is not None:
+            fill = {"used": False, "reason": fill_reason, "skipped": check.skipped} if fill_used else \
+                {"used": False, "reason": fill_reason}
+            return self.refined(None, check, _Heat(None, check.skipped, fill, None, []))
+        try:
+            m = mds_map(self.surface, opts, prog, fill_used, fill_reason)
+        except HeatparamError as exc:
+            if opts.refine == "none" or opts.mds_start != "auto" or not heat_stage_optional(opts):
+                raise  # the heat stage was asked for (or is the map itself): its failure is the answer
+            # otherwise it only offers a start: the refinement starts from the conformal layout or Tutte
+            why = (f"skipped: the heat stage failed ({exc}); the refinement starts from the conformal layout, or "
+                   "Tutte when it is not bijective")
+            fill = {"used": False, "reason": fill_reason, "skipped": why}
+            warning = f"the heat stage failed ({exc}): the map starts without MDS"
+            return self.refined(None, check, _Heat(None, why, fill, None, [warning]))
+        if opts.refine == "none":
+            summary = map_metrics(self.surface.V, self.surface.F, m.uv, prog, m.layout)
+            method = method_report(opts, m.layout, None, m.fill, {"method": opts.refine})
+            return Flat(m.uv, summary, method, m.layout, m.fill_surface, m.warnings)
+        return self.refined(m.uv, check, _Heat(m.layout, None, m.fill, m.fill_surface, m.warnings))
+
+    def refined(self, uv: np.ndarray | None, check, heat: _Heat) -> Flat:
+        """The refinement from the MDS layout ``uv`` (None: the heat stage was skipped), as a Flat."""
+        s = self.surface
+        with self.prog.stage("refine"):
+            rf = Refinement(s.V, s.F, uv, RefineParams.from_options(self.opts), progress=self.prog,
+                            conformal=s.conformal, lscm=check.lscm, surface=s.gradients(), extra_starts=self.starts,
+                            pausing=self.pausing)
+        return _Refined(self, rf, heat).flat()
+
+
+class _Heat(NamedTuple):
+    """What the heat stage gave a refinement: its MDS layout (None when skipped), why it was skipped, the report's
+    fill part, the fill surface (for pictures) and warnings."""
+
+    layout: Layout | None
+    skipped: str | None
+    fill: dict
+    fill_surface: FillSurface | None
+    warnings: list[str]
+
+
+class _Refined:
+    """A refinement's Flat, with a ``resume`` that finishes the refinement when it paused."""
+
+    def __init__(self, flattening: _Flattening, rf: Refinement, heat: _Heat):
+        self.flattening, self.rf, self.heat = flattening, rf, heat
+
+    def flat(self) -> Flat:
+        f, h = self.flattening, self.heat
+        summary = map_metrics(f.surface.V, f.surface.F, self.rf.x, f.prog, h.layout)
+        method = method_report(f.opts, h.layout, h.skipped, h.fill, self.rf.report())
+        return Flat(self.rf.x, summary, method, h.layout, h.fill_surface, h.warnings,
+                    None if self.rf.done else self.resume)
+
+    def resume(self) -> Flat:
+        with self.flattening.prog.stage("refine"):
+            self.rf.run()
+        return self.flat()
 
 
 __all__ = ["FillSurface", "Options", "Result", "flatten", "parameterize", "parameterize_disk"]

@@ -10,11 +10,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from heatparam import __version__, metrics
+from heatparam import metrics
 from heatparam.memory import peak_rss_bytes
 from heatparam.mesh.frame import UnitFrame
 from heatparam.pipeline.heat_stage import FillSurface, Layout
 from heatparam.progress import Progress
+from heatparam.version import __version__
 
 
 class Flat(NamedTuple):

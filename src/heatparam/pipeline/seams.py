@@ -10,6 +10,7 @@ the constraint instead of fighting it.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -22,7 +23,8 @@ from heatparam.options import SEAM_MIN_GAIN, SEAM_PAUSE_EXCESS, SEAM_PAUSE_FLOOR
 from heatparam.pipeline.report import Flat
 from heatparam.pipeline.surface import Surface
 from heatparam.progress import Progress
-from heatparam.refine.seam_start import open_slits, reopen_crossing_slits
+from heatparam.refine import Pausing
+from heatparam.refine.reopen_slits import reopen_crossing_slits
 
 
 class Cut(NamedTuple):
@@ -47,115 +49,120 @@ class SeamResult(NamedTuple):
     uncut: Flat
 
 
-def seam_pause(surface: Surface, opts) -> tuple[float, float]:
-    """How the two trial flattenings of ``surface`` (without and with seams) may pause: (``pause_excess``,
-    ``pause_coarse`` of the map without seams).
+def seam_pause(surface: Surface, opts) -> Pausing:
+    """How the trial flattening without seams of ``surface`` may pause (``refine.Pausing``).
 
-    ``pause_excess`` is ``SEAM_PAUSE_EXCESS`` when ``seams auto`` may try the cut-open mesh (holes, a refined map),
-    so that a trial the map will not keep is not polished to the end; else 0 (``holes`` keeps the cut map, ``none``
-    tries nothing). The map without seams may also pause at its coarse levels while their iso mean exceeds
-    ``pause_coarse``: the value above which the cut is tried for any finished map (:func:`_surely_tried`), where
-    the map without seams was kept on no mesh measured (BENCHMARKS.md §16: beetle upsampled to 311k polished its
-    coarse level 66 Newton iterations for a map it dropped). The cut map pauses at its fine level only: it is
-    usually kept, and finishing a paused coarse level drops the fine iterations made from it."""
+    The polish pauses at ``SEAM_PAUSE_EXCESS`` when ``seams auto`` may try the cut-open mesh (holes, a refined map),
+    so that a trial the map will not keep is not polished to the end; else never (``holes`` keeps the cut map,
+    ``none`` tries nothing). Its coarse levels may pause too while their iso mean exceeds the value above which the
+    cut is tried for any finished map (:func:`_surely_tried`), where the map without seams was kept on no mesh
+    measured (BENCHMARKS.md §16). The cut map pauses at its fine level only: it is usually kept, and finishing a
+    paused coarse level drops the fine iterations made from it."""
     auto = opts.seams == "auto" and opts.refine != "none" and surface.info.n_holes > 0
     if not auto:
-        return 0.0, 0.0
-    return SEAM_PAUSE_EXCESS, 1.0 + SEAM_TRY_EXCESS / SEAM_PAUSE_FLOOR
+        return Pausing()
+    return Pausing(SEAM_PAUSE_EXCESS, 1.0 + SEAM_TRY_EXCESS / SEAM_PAUSE_FLOOR)
 
 
-def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat,
-                flatten: Callable[..., Flat], uncut_start: bool = False) -> SeamResult:
-    """``Options.seams``: the flattening (``flatten(cut surface, opts, prog, seamed=True, starts, pause_excess)``)
-    of the surface cut open from every hole to the border when it is asked for or (``auto``) clearly better than
-    ``flat``. The returned flattening is finished (``flat`` may come paused: :func:`seam_pause`).
+def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat, flatten: Callable[..., Flat]) -> SeamResult:
+    """``Options.seams``: the flattening (``flatten``, as ``pipeline.flatten``) of the surface cut open from every
+    hole to the border when it is asked for or (``auto``) clearly better than ``flat``. The returned flattening is
+    finished (``flat`` may come paused: :func:`seam_pause`).
 
     ``seams auto`` decides on paused polishes where it can (:func:`_decide`): the kept map is then finished, the
     other one not; the report's ``seams.paused`` says which iso means were read on a paused map.
-
-    ``uncut_start``: offer the refinement ``flat``'s map with the slits opened (``refine.seam_start.open_slits``)
-    as the start candidate ``"uncut"``. Off by default: on beetle that start wins on energy (1.0106 vs Tutte's 37.6)
-    but its polish ends in a worse minimum (energy 1.0039 vs 1.0007, iso mean 1.041 vs 1.019) after more Newton
-    iterations (67 vs 44), on halftunnel LSCM's start is lower (1.218 vs 1.300); ``bench/bench_seams.py``.
     """
     rep: dict = {"mode": opts.seams, "used": False}
     if flat.resume is not None and not _surely_tried(flat):
         flat = flat.resume()  # whether the cut is tried at all depends on the finished map's iso mean
     reason = _no_cut_reason(surface, opts, flat)
+    cut = None
+    if reason is None:
+        with prog.stage("seams"):
+            cut, reason = _cut_open(surface)
     if reason is not None:
         flat = _finished(flat)
         return SeamResult(flat, None, rep | {"reason": reason}, [], flat)
-    with prog.stage("seams"):
-        paths = hole_seams(surface.V, surface.F, surface.info.boundary_loops)
-        Vs, Fs, src = cut_open(surface.V, surface.F, paths)
-        try:
-            # the inverse iteration's layout, not the converged eigenvector: on beetle upsampled that one's slits
-            # cross where several seams meet a hole (layout.conformal.SCP_CUT_MAX_ITERS)
-            cut_surface = Surface(Vs, Fs, validate_mesh(Vs, Fs), conformal_method="inverse",
-                                  conformal_max_solves=SCP_CUT_MAX_ITERS)
-        except HeatparamError as exc:  # a seam set that does not leave a disk (never seen): keep the map
-            flat = _finished(flat)
-            return SeamResult(flat, None, rep | {"reason": f"the cut-open mesh is not a disk ({exc})"}, [], flat)
-    lengths = [float(np.linalg.norm(np.diff(surface.V[p], axis=0), axis=1).sum()) for p in paths]
-    rep.update(seams=len(paths), length=round(sum(lengths), 9), longest=round(max(lengths), 9),
-               split_vertices=int(len(Vs) - len(surface.V)))
+    lengths = [float(np.linalg.norm(np.diff(surface.V[p], axis=0), axis=1).sum()) for p in cut.paths]
+    rep.update(seams=len(cut.paths), length=round(sum(lengths), 9), longest=round(max(lengths), 9),
+               split_vertices=int(len(cut.surface.V) - len(surface.V)))
     starts: dict[str, np.ndarray] = {}
     if opts.refine != "none":
         with prog.stage("seams"):
-            x, rep["conformal_reopened"] = _reopened_conformal(cut_surface, src)
+            x, rep["conformal_reopened"] = _reopened_conformal(cut.surface, cut.source)
         if x is not None:
             starts["conformal_reopened"] = x
-    if uncut_start and opts.refine != "none":
-        with prog.stage("seams"):
-            x, rep["uncut_start"] = open_slits(flat.uv[src], Fs, src)
-        if x is not None:
-            starts["uncut"] = x
-    # the cut map, when paused, keeps its factorization: it is usually kept and finished next (beetle upsampled to
-    # 311k: 4.5 s to rebuild the factorization and the Hessian's pattern after a pause); when the map without seams
-    # is kept instead, the cut map is dropped (its factorization with it) before that one is finished
-    cut = flatten(cut_surface, opts, prog, True, starts or None, seam_pause(surface, opts)[0], pause_park=False)
+    # the cut map, when paused, keeps its factorization: it is usually kept and finished next (4.5 s to rebuild
+    # at 311k vertices); when the map without seams is kept instead, the cut map is dropped first
+    pausing = Pausing(seam_pause(surface, opts).excess, park=False)
+    maps = _Maps(flat, flatten(cut.surface, opts, prog, seamed=True, starts=starts or None, pausing=pausing))
+    del flat  # from here on only ``maps`` holds the two maps, so that the one not kept can be freed
+    return _chosen(opts, maps, cut, rep, sum(lengths))
+
+
+@dataclass
+class _Maps:
+    """The two flattenings compared, without and with seams: the only reference to each, so that the map not kept
+    (its polish state, possibly an unparked factorization, its heat-stage layout) is freed, by reassigning its
+    attribute, before the kept one is finished (where the peak memory is)."""
+
+    without: Flat
+    cut: Flat
+
+
+def _cut_open(surface: Surface) -> tuple[Cut | None, str | None]:
+    """The surface cut open from every hole to the border (``mesh.seams.hole_seams``), or why not."""
+    paths = hole_seams(surface.V, surface.F, surface.info.boundary_loops)
+    Vs, Fs, src = cut_open(surface.V, surface.F, paths)
+    try:
+        # the inverse iteration's layout, not the converged eigenvector: on beetle upsampled that one's slits
+        # cross where several seams meet a hole (layout.conformal.SCP_CUT_MAX_ITERS)
+        cut_surface = Surface(Vs, Fs, validate_mesh(Vs, Fs), conformal_method="inverse",
+                              conformal_max_solves=SCP_CUT_MAX_ITERS)
+    except HeatparamError as exc:  # a seam set that does not leave a disk (never seen): keep the map
+        return None, f"the cut-open mesh is not a disk ({exc})"
+    return Cut(cut_surface, src, paths), None
+
+
+def _chosen(opts, maps: _Maps, cut: Cut, rep: dict, length: float) -> SeamResult:
+    """The seams stage's value once both maps exist: the one kept finished, the other left where it is."""
     if opts.seams == "auto":
-        better, flat, cut = _decide(flat, cut)
+        better, maps.without, maps.cut = _decide(maps.without, maps.cut)
     else:
         better = True
-    paused = [name for name, f, kept in (("without", flat, not better), ("with", cut, better))
+    paused = [name for name, f, kept in (("without", maps.without, not better), ("with", maps.cut, better))
               if f.resume is not None and not kept]
-    # the map not kept is left where it is: its polish state (and heat-stage layout) freed before the kept map is
-    # finished (halftunnel upsampled to 201k: the peak is in that finishing polish)
-    # (one statement each: a tuple assignment would keep the map not kept alive while the other is finished, and
-    # the cut map may hold its factorization: it was not parked)
     if better:
-        flat = _left(flat)
-        cut = _finished(cut)
+        maps.without = _left(maps.without)
+        maps.cut = _finished(maps.cut)
     else:
-        cut = _left(cut)
-        flat = _finished(flat)
-    iso, iso_s = flat.summary["iso_mean"], cut.summary["iso_mean"]
-    rep.update(iso_mean_without=iso, iso_mean_with=iso_s, bijective_with=cut.summary["bijective"])
+        maps.cut = _left(maps.cut)
+        maps.without = _finished(maps.without)
+    flat, cut_flat = maps.without, maps.cut
+    iso, iso_s = flat.summary["iso_mean"], cut_flat.summary["iso_mean"]
+    rep.update(iso_mean_without=iso, iso_mean_with=iso_s, bijective_with=cut_flat.summary["bijective"])
     if paused:
         rep["paused"] = {"maps": paused, "pause_excess": SEAM_PAUSE_EXCESS, "floor": SEAM_PAUSE_FLOOR,
                          "note": ("the iso mean of these maps was read where their polish paused; the decision "
                                   "held for any finished value from the floor × their excess over 1 to all of it, "
                                   "so they were not finished")}
+    was_paused = " (paused)" if paused else ""
     if not better:
-        rep["reason"] = (f"the cut-open map is not {SEAM_MIN_GAIN:.0%} better (iso mean {iso_s:.4f}"
-                         f"{' (paused)' if paused else ''} vs {iso:.4f}"
-                         f"{'' if cut.summary['bijective'] else ', not bijective'}); kept without seams")
+        rep["reason"] = (f"the cut-open map is not {SEAM_MIN_GAIN:.0%} better (iso mean {iso_s:.4f}{was_paused} vs "
+                         f"{iso:.4f}{'' if cut_flat.summary['bijective'] else ', not bijective'}); kept without seams")
         return SeamResult(flat, None, rep, [], flat)
-    if opts.seams == "auto":
-        rep["reason"] = (f"the holes cost distortion: iso mean {iso:.4f}{' (paused)' if paused else ''}"
-                         f" without seams, {iso_s:.4f} with {len(paths)} (seams='none' keeps one uncut piece)")
-    else:
-        rep["reason"] = "requested (seams='holes')"
     rep["used"] = True
-    warning = (f"the map has seams: {len(paths)} cut(s), {sum(lengths):.6g} long in all, join the holes to the border "
+    rep["reason"] = (f"the holes cost distortion: iso mean {iso:.4f}{was_paused} without seams, {iso_s:.4f} with "
+                     f"{len(cut.paths)} (seams='none' keeps one uncut piece)" if opts.seams == "auto"
+                     else "requested (seams='holes')")
+    warning = (f"the map has seams: {len(cut.paths)} cut(s), {length:.6g} long in all, join the holes to the border "
                f"(iso mean {iso:.4f}{' where its polish paused' if paused else ''} → {iso_s:.4f}); the OBJ's vt rows "
                "split along them (seams='none': one uncut piece)")
-    return SeamResult(cut, Cut(cut_surface, src, paths), rep, [*cut.warnings, warning], flat)
+    return SeamResult(cut_flat, cut, rep, [*cut_flat.warnings, warning], flat)
 
 
 def _reopened_conformal(cut_surface: Surface, source: np.ndarray) -> tuple[np.ndarray | None, dict]:
-    """The cut surface's conformal layout with its crossing slits reopened (``refine.seam_start``), offered to the
+    """The cut surface's conformal layout with its crossing slits reopened (``refine.reopen_slits``), offered to the
     refinement as the start candidate ``"conformal_reopened"`` when the layout crosses only there; (layout or None,
     the report's ``seams.conformal_reopened``)."""
     try:

@@ -19,11 +19,10 @@ The heat stage (fill, geodesics, MDS) is not computed when
     a few flips: on both such parts measured the MDS layout folded too (halftunnel upsampled to 201k: 52,925 flipped
     faces; a cylinder with holes and noise 0.3 × the edge at 182k: 249, beyond repair), the trial started from Tutte
     either way and the kept map was the same, so the heat stage (22-31 s there) is skipped: 67-81 → 58 s and
-    254 → 247 s, peak 1.65 → 1.23 GB and 1.55 → 1.24 GB (BENCHMARKS §18e). Where the trial's map is kept it has
-    started from Tutte; ``mds_start='always'`` computes the heat stage.
+    254 → 247 s (BENCHMARKS §18e). Where the trial's map is kept it has started from Tutte;
+    ``mds_start='always'`` computes the heat stage.
 
-Tests compare (a) and (c) with ``mds_start="always"`` bit for bit, (b) by map quality, (d) with
-``SKIP_HEAT_IN_SEAM_TRIALS`` off bit for bit.
+Tests compare (a) and (c) with ``mds_start="always"`` bit for bit, (b) and (d) by map quality.
 """
 
 from __future__ import annotations
@@ -34,9 +33,6 @@ from heatparam.options import CONFORMAL_START_MIN_VERTICES, ISOMETRIC_START_EXCE
 from heatparam.pipeline.surface import Surface
 from heatparam.progress import Progress
 from heatparam.refine.start import LscmStart, lscm_start
-
-#: case (d) of the module docstring (False: the heat stage runs for such trials, as before 2026-12-03)
-SKIP_HEAT_IN_SEAM_TRIALS = True
 
 
 class StartCheck(NamedTuple):
@@ -74,7 +70,7 @@ def start_checks(surface: Surface, opts, prog: Progress, seamed: bool = False, t
     if len(surface.V) < CONFORMAL_START_MIN_VERTICES:
         return StartCheck(lscm, None)
     if lscm.energy is None:
-        if trial and SKIP_HEAT_IN_SEAM_TRIALS:
+        if trial:
             return StartCheck(lscm, ("skipped: the map without seams is the seams stage's trial on a large mesh whose "
                                      "conformal layout is not bijective even repaired, where MDS folded too on every "
                                      "part measured; it starts from Tutte (mds_start='always' computes them)"))

@@ -29,7 +29,7 @@ from heatparam import metrics
 from heatparam.layout.tutte import build_disk
 from heatparam.options import MULTILEVEL_MIN_VERTICES
 from heatparam.refine.energy import det, jacobians, surface_gradients
-from heatparam.refine.multilevel import multilevel_polish, run_polish
+from heatparam.refine.multilevel import LevelSettings, multilevel_polish, run_polish
 from heatparam.refine.start import LscmStart, choose_start
 
 #: Peak memory of the refinement per surface face, above the rest of the pipeline: the peak RSS of the default run
@@ -59,6 +59,23 @@ class RefineParams(NamedTuple):
     @classmethod
     def from_options(cls, opts) -> RefineParams:
         return cls(opts.solver, int(opts.refine_iters), float(opts.refine_tol), int(opts.refine_multilevel))
+
+
+class Pausing(NamedTuple):
+    """How a :class:`Refinement` may pause, so that the seams stage can compare maps before finishing one.
+
+    excess : > 0: the polish pauses once an iteration lowers the energy by less than this fraction of its excess
+    over an isometry (0: never). coarse : > 0: its coarse levels may pause too while their map's iso mean exceeds
+    this (``multilevel.Levels``). park : a paused fine polish frees its factorization (False: it keeps it, for a
+    trial that is usually finished next).
+    """
+
+    excess: float = 0.0
+    coarse: float = 0.0
+    park: bool = True
+
+
+NO_PAUSE = Pausing()
 
 
 def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefineParams | None = None,
@@ -91,26 +108,22 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefinePa
     >>> rep["bijective"], rep["start"]["layout"]
     (True, 'conformal')
     """
-    r = Refinement(V, F, uv, params, progress, conformal, lscm, surface, extra_starts)
+    r = Refinement(V, F, uv, params, progress=progress, conformal=conformal, lscm=lscm, surface=surface,
+                   extra_starts=extra_starts)
     r.run()
     return r.x, r.report()
 
 
 class Refinement:
-    """:func:`refine` in steps: the start and the coarse levels at construction, then the fine polish by
-    ``run(pause_excess)``: it returns False when the polish paused (an iteration gained less than
-    ``pause_excess`` of the energy's excess over an isometry, :class:`newton.Polish`; with ``pause_coarse`` > 0
-    the coarse levels may pause too while their iso mean exceeds it, :class:`multilevel.Levels`), and ``run()``
-    goes on to the very layout of an uninterrupted refine; ``pause_park`` False keeps the fine polish's
-    factorization while it is paused (:class:`newton.Polish`'s ``park``). ``x`` (n,2) is the current layout
-    (bijective at every pause), ``report()`` the report so far (``polish.stop`` "paused" while paused), ``done``
-    whether the polish stopped."""
+    """:func:`refine` in steps: the start and the polish until it stops or pauses (``pausing``: :class:`Pausing`)
+    at construction, then ``run()`` goes on to the very layout of an uninterrupted refine. ``x`` (n,2) is the
+    current layout (bijective at every pause), ``report()`` the report so far (``polish.stop`` "paused" while
+    paused), ``done`` whether the polish stopped. The other arguments are :func:`refine`'s."""
 
-    def __init__(self, V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefineParams | None = None,
+    def __init__(self, V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefineParams | None = None, *,
                  progress=None, conformal: Callable[[], np.ndarray] | None = None, lscm: LscmStart | None = None,
                  surface: tuple[np.ndarray, np.ndarray] | None = None,
-                 extra_starts: dict[str, np.ndarray] | None = None, pause_excess: float = 0.0,
-                 pause_coarse: float = 0.0, pause_park: bool = True):
+                 extra_starts: dict[str, np.ndarray] | None = None, pausing: Pausing = NO_PAUSE):
         t0 = time.perf_counter()
         params = RefineParams() if params is None else params
         self.F, self.progress = F, progress
@@ -121,10 +134,11 @@ class Refinement:
         self._report: dict = {"method": "sd", "holes": len(disk.holes), "start": start}
         self.x_start = x
         with _one_openblas_thread():
-            self.polish, self._report["multilevel"] = multilevel_polish(
-                V, F, x, disk.loops, g, area, min_vertices=params.multilevel, max_iters=params.max_iters,
-                tol=params.tol, backend=params.solver, progress=progress, pause_excess=pause_excess,
-                pause_coarse=pause_coarse, park=pause_park)
+            settings = LevelSettings(min_vertices=params.multilevel, max_iters=params.max_iters, tol=params.tol,
+                                     backend=params.solver, pause_excess=pausing.excess, pause_coarse=pausing.coarse,
+                                     park=pausing.park)
+            self.polish, self._report["multilevel"] = multilevel_polish(V, F, x, disk.loops, g, area, settings,
+                                                                        progress=progress)
         self.seconds = time.perf_counter() - t0
 
     @property
@@ -169,4 +183,5 @@ def _one_openblas_thread():
     return ThreadpoolController().select(internal_api="openblas").limit(limits=1)
 
 
-__all__ = ["POLISH_BYTES_PER_FACE", "LscmStart", "RefineParams", "Refinement", "polish_bytes", "refine"]
+__all__ = ["NO_PAUSE", "POLISH_BYTES_PER_FACE", "LscmStart", "Pausing", "RefineParams", "Refinement", "polish_bytes",
+           "refine"]

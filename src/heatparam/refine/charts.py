@@ -22,7 +22,7 @@ from heatparam import metrics
 from heatparam.mesh.planar import shelf_pack
 from heatparam.mesh.topology import boundary_loops
 from heatparam.refine.energy import det, jacobians, surface_gradients
-from heatparam.refine.newton import polish
+from heatparam.refine.newton import ScaffoldUse, polish
 
 __all__ = ["CHART_GAP", "EXCESS_TOL", "arrange", "refine_charts"]
 
@@ -78,7 +78,8 @@ def refine_charts(V: np.ndarray, F: np.ndarray, uv: np.ndarray, vgroup: np.ndarr
     loops = boundary_loops(F)
     g, area = surface_gradients(V, F)
     x, rep = polish(x0, F, g, area, loops, max_iters=max_iters, tol=tol, backend=backend, excess_tol=excess_tol,
-                    scaffold=scaffold, groups=vgroup[F[:, 0]] if len(F) else None)
+                    scaffold=ScaffoldUse.ALWAYS if scaffold else ScaffoldUse.NEVER,
+                    groups=vgroup[F[:, 0]] if len(F) else None)
     if not np.isfinite(x).all():  # as refine.refine: the start is bijective and finite, keep it rather than NaN
         x = x0
         rep["fallback"] = "the polish produced non-finite coordinates: the start layouts are kept"

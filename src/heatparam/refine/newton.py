@@ -1,7 +1,7 @@
 """Projected Newton on the symmetric Dirichlet energy plus the scaffold's, from a bijective layout.
 
-The scaffold (``scaffold.build_scaffold``) is rebuilt around the current layout at every iteration (a fine level
-of coarse-to-fine keeps it while it holds: ``keep_scaffold``) and measured against its own shape at the
+The scaffold (``scaffold.build_scaffold``) is rebuilt around the current layout at every iteration (or kept while
+it holds: ``PolishSettings.keep_scaffold``) and measured against its own shape at the
 iteration's start (Jiang et al. 2017); each scaffold triangle weighs up to ``SCAFFOLD_WEIGHT`` ×
 the mean surface face, relaxed by ``SCAFFOLD_ADAPT`` after every uncut step: it shapes the Newton direction. The
 line search (:func:`_line_search`, on the surface energy) starts at the largest step that stays bijective: 0.9 ×
@@ -27,16 +27,18 @@ The Hessian's sparsity pattern is built once (:class:`HessianPattern`); directio
 factorization (:func:`newton_direction`); the line search is bounded by the flip barrier (``energy.max_step``,
 ``scaffold.feasible_step``).
 
-Without a scaffold (``Polish(scaffold=False)``: the atlas's charts, ``refine.charts``; ``"until crossing"``: a fine
-level after a converged coarse one, ``multilevel.FINE_BARE``) the Hessian is the surface's alone, its pattern fixed,
-and each step is checked instead of barred: halved until no two boundary edges cross (:func:`_chart_steps`, one
-step per chart), or, until crossing, redone with the scaffold at the first crossing.
+Without a scaffold (:class:`ScaffoldUse` ``NEVER``: the atlas's charts, ``refine.charts``; ``UNTIL_CROSSING``: a
+fine level after a converged coarse one) the Hessian is the surface's alone, its pattern fixed, and each step is
+checked instead of barred: halved until no two boundary edges cross (:func:`_chart_steps`, one step per chart), or,
+until crossing, redone with the scaffold at the first crossing.
 """
 
 from __future__ import annotations
 
 import time
 from concurrent.futures import Future
+from dataclasses import dataclass
+from enum import Enum
 from typing import NamedTuple
 
 import numpy as np
@@ -80,12 +82,8 @@ STALL_ITERS = 5  # the polish gives up after this many barrier-limited iteration
 #: of the energy's excess stop the polish, whatever the step length and the scaffold's weight: on cow the 5
 #: barrier-limited iterations after the first such one gained 2e-5 of energy 1.00094 together (BENCHMARKS §18)
 EXCESS_STALL_ITERS = 2
-#: With ``excess_tol``, the polish also stops when the next iteration's gain, predicted as the last gain times its
-#: ratio to the one before, is below excess_tol of the excess: cow's atlas, 4 → 3 iterations (the 4th gained 6e-6 of
-#: energy 1.00226 and made 11 crossing checks; BENCHMARKS §22)
-EXCESS_PREDICT = True
 
-#: Without a scaffold (``Polish(scaffold=False)``) a step is halved at most this many times until no boundary
+#: Without a scaffold (``ScaffoldUse.NEVER``) a step is halved at most this many times until no boundary
 #: edges cross
 CROSSING_HALVINGS = 20
 
@@ -101,9 +99,8 @@ class HessianPattern:
 
     upper : build only the upper triangle, as sorted CSR, which is what PARDISO reads (``solvers.Factor(...,
         upper=True)``): each entry goes once, to whichever of (p, q), (q, p) lies in the upper triangle, at half the
-        full matrix's memory and without its copies and ``triu`` at every iteration (beetle upsampled to 78k: peak
-        RSS 1013 → 932 MB; beetle: the 0.5 s of ``triu`` gone, 2026-12-02). Faces must have three distinct vertices
-        (validated meshes do).
+        full matrix's memory and without its copies and ``triu`` at every iteration (beetle↑78k: peak RSS 1013 →
+        932 MB). Faces must have three distinct vertices (validated meshes do).
     """
 
     def __init__(self, F: np.ndarray, n: int, upper: bool = False):
@@ -290,7 +287,7 @@ def _system(x: np.ndarray, J: np.ndarray, Es: float, F: np.ndarray, g: np.ndarra
     """Scaffold around ``x`` (``last``, the previous iteration's, while it holds: ``scaffold.scaffold_holds``;
     else :func:`build_scaffold`, ValueError when it cannot be built), PSD-projected Hessian and gradient of
     surface + scaffold energy (each scaffold triangle measured against its shape in ``x``). ``scaffold`` False
-    (``Polish(scaffold=False)``): the surface energy's alone, ``sc`` None."""
+    (``ScaffoldUse.NEVER``): the surface energy's alone, ``sc`` None."""
     n = len(x)
     gJ, H = pat.assemble(J, g, w_surf)
     gr = scatter(gJ, F, g, n)
@@ -312,32 +309,33 @@ def _system(x: np.ndarray, J: np.ndarray, Es: float, F: np.ndarray, g: np.ndarra
     return _System(sc, E0, H, rhs, pat.upper)
 
 
+class _ChartEnergies:
+    """The charts' energies along a step: ``(t, which)`` → (k,) the energy of the charts ``which`` (k,) bool (None:
+    all) at their step lengths t (k,) (None: 0) along the Jacobian directions D, 0 for the others."""
+
+    def __init__(self, J: np.ndarray, D: np.ndarray, w_surf: np.ndarray, groups: ChartGroups):
+        self.J, self.D, self.w, self.fg, self.k = J, D, w_surf, groups.face, groups.k
+
+    def __call__(self, t: np.ndarray | None, which: np.ndarray | None) -> np.ndarray:
+        J, D, w, fg, k = self.J, self.D, self.w, self.fg, self.k
+        if which is None or which.all():  # every face (no copies of the selection)
+            Jt = J if t is None else J + (t[0] if k == 1 else t[fg][:, None, None]) * D
+            return np.bincount(fg, weights=w * symmetric_dirichlet(Jt, w)[1], minlength=k)
+        sel = which[fg]
+        e = symmetric_dirichlet(J[sel] + t[fg[sel]][:, None, None] * D[sel], w[sel])[1]
+        return np.bincount(fg[sel], weights=w[sel] * e, minlength=k)
+
+
 def _chart_steps(x: np.ndarray, d: np.ndarray, J: np.ndarray, D: np.ndarray, w_surf: np.ndarray,
                  tmax: np.ndarray, groups: ChartGroups, halvings: int = CROSSING_HALVINGS
                  ) -> np.ndarray | None:
-    """Per-chart step lengths (k,) along ``d`` (n,2) for a polish without a scaffold (``Polish(scaffold=False)``).
+    """Per-chart step lengths (k,) along ``d`` (n,2) for a polish without a scaffold (``ScaffoldUse.NEVER``).
 
     The charts (``groups``) share no vertex and the energy is a sum over them, so each takes its own step: from
     min(1, ``tmax`` (k,), its flip barrier), halved until its energy decreases, doubled after a full step while that
-    lowers it further (as :func:`_line_search`), then halved until no two of its boundary edges cross
-    (``metrics.crossing_pairs``; a flip-free disk whose boundary does not cross itself is bijective, whatever the
-    path there: only the end point is checked; at most ``halvings`` times, after which a chart still crossing stays
-    where it is); 0 for a chart with no such step. None when no chart moves, or (``halvings`` 0: the caller then
-    takes a scaffold) when any boundary crosses."""
-    from heatparam.metrics import crossing_pairs
-
-    fg, k = groups.face, groups.k
-
-    def energies(t: np.ndarray | None, which: np.ndarray | None) -> np.ndarray:
-        """(k,) the energy of the charts ``which`` (k,) bool (None: all) at their steps t (k,) (None: 0), 0 for the
-        others."""
-        if which is None or which.all():  # every face (no copies of the selection)
-            Jt = J if t is None else J + (t[0] if k == 1 else t[fg][:, None, None]) * D
-            return np.bincount(fg, weights=w_surf * symmetric_dirichlet(Jt, w_surf)[1], minlength=k)
-        sel = which[fg]
-        e = symmetric_dirichlet(J[sel] + t[fg[sel]][:, None, None] * D[sel], w_surf[sel])[1]
-        return np.bincount(fg[sel], weights=w_surf[sel] * e, minlength=k)
-
+    lowers it further (as :func:`_line_search`), then :func:`_uncrossed`. None when no chart moves, or (``halvings``
+    0: the caller then takes a scaffold) when any boundary crosses."""
+    energies = _ChartEnergies(J, D, w_surf, groups)
     E0 = energies(None, None)
     t = np.minimum(1.0, tmax)
     E1 = energies(t, None)
@@ -354,15 +352,28 @@ def _chart_steps(x: np.ndarray, d: np.ndarray, J: np.ndarray, D: np.ndarray, w_s
         grow &= E2 < E1
         t, E1 = np.where(grow, 2 * t, t), np.where(grow, E2, E1)
         grow &= 2 * t <= tmax
-    edges = groups.edges
+    if not _uncrossed(x, d, t, E0, E1, energies, groups, halvings):
+        return None
+    return t if (t > 0).any() else None
+
+
+def _uncrossed(x: np.ndarray, d: np.ndarray, t: np.ndarray, E0: np.ndarray, E1: np.ndarray,
+               energies: _ChartEnergies, groups: ChartGroups, halvings: int) -> bool:
+    """Halve the steps t (k,), in place, of the charts whose boundary edges cross (``metrics.crossing_pairs``; a
+    flip-free disk whose boundary does not cross itself is bijective, whatever the path there: only the end point
+    is checked), at most ``halvings`` times, after which a chart still crossing stays where it is (t 0); a chart
+    whose halved step no longer descends stays too. False when ``halvings`` is 0 and any boundary crosses."""
+    from heatparam.metrics import crossing_pairs
+
+    edges, k = groups.edges, groups.k
     check = np.arange(len(edges))  # the edges whose pairs can cross: all, then those near the charts just moved
     P = x + np.append(t, 0.0)[groups.vertex][:, None] * d
     for i in range(halvings + 2):
         pairs = check[crossing_pairs(P, edges[check])]
         if not len(pairs):
-            break
+            return True
         if halvings == 0:
-            return None
+            return False
         hit = np.zeros(k, dtype=bool)
         hit[groups.edge[pairs.ravel()]] = True
         if i >= halvings:  # still crossing: those charts stay where they are (checked once more)
@@ -381,9 +392,7 @@ def _chart_steps(x: np.ndarray, d: np.ndarray, J: np.ndarray, D: np.ndarray, w_s
             lo, hi = lo_e[own].min(axis=0), hi_e[own].max(axis=0)
             near |= ((hi_e >= lo) & (lo_e <= hi)).all(axis=1)
         check = np.flatnonzero(near)
-    else:
-        return None
-    return t if (t > 0).any() else None
+    return False
 
 
 class ChartGroups(NamedTuple):
@@ -432,16 +441,16 @@ def _line_search(J: np.ndarray, D: np.ndarray, w_surf: np.ndarray, E0: float, tm
 
 
 def _safe_direction(sy: _System, fac, backend: str):
-    """The Newton direction (dx, factor, refactorized?) of the system, or why it could not be had (a string): any
+    """The Newton direction (dx, factor, refactorized?) of the system, or what failed (a string): any
     solver failure (PARDISO -4, CHOLMOD not positive definite) on degenerate faces keeps the last layout."""
     try:
         if not (np.isfinite(sy.H.data).all() and np.isfinite(sy.rhs).all()):
             raise FloatingPointError("non-finite Hessian")
         dx, fac, fresh = newton_direction(sy.H, sy.rhs, fac, backend, sy.upper)
     except Exception as exc:  # noqa: BLE001 - the polish must keep its bijective layout whatever the solver does
-        return f"numerical failure ({type(exc).__name__}): the last bijective layout is kept"
+        return type(exc).__name__
     if not np.isfinite(dx).all():
-        return "numerical failure (non-finite Newton step): the last bijective layout is kept"
+        return "non-finite Newton step"
     return dx, fac, fresh
 
 
@@ -474,20 +483,82 @@ def _barrier_step(x: np.ndarray, J: np.ndarray, Es: float, dx: np.ndarray, F: np
     return None if step is None else (step[0], step[0] * d)
 
 
-def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray], *,
-           max_iters: int = 200, tol: float = 1e-6, backend: str = "auto", bar=None,
-           guards: np.ndarray | None = None, excess_tol: float = 0.0, scaffold: bool = True,
-           groups: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
+class ScaffoldUse(Enum):
+    """How a polish keeps boundaries from crossing: a scaffold at every iteration (``ALWAYS``), none, each step
+    checked instead (``NEVER``: many charts polished together, ``refine.charts``), or none until a step would make
+    boundaries cross and the scaffold from that iteration on (``UNTIL_CROSSING``: a fine level after a converged
+    coarse level, whose boundary stays put)."""
+
+    ALWAYS = "always"
+    NEVER = "never"
+    UNTIL_CROSSING = "until crossing"
+
+
+class Stop(Enum):
+    """Why a polish stopped (:attr:`Polish.stop`); the value is the report's text (``{detail}``: what failed,
+    ``{excess_tol}``: the excess rule's tolerance)."""
+
+    ITERATION_CAP = "iteration cap"
+    CONVERGED = "converged"
+    START_IS_MINIMUM = "converged (the start is an isometry to within the tolerance)"
+    EXCESS_GAINS = "converged (gains below {excess_tol:g} of the excess over an isometry)"
+    EXCESS_PREDICTED = "converged (next gain predicted below {excess_tol:g} of the excess over an isometry)"
+    STALLED = "stalled at the barrier"
+    NO_DESCENT = "no descent"
+    SCAFFOLD_FAILED = "scaffold failed: {detail}"
+    NUMERICAL_FAILURE = "numerical failure ({detail}): the last bijective layout is kept"
+
+
+@dataclass(frozen=True)
+class PolishSettings:
+    """How a :class:`Polish` iterates.
+
+    max_iters : iteration cap. tol : converged when an uncut step lowers the energy by less than this fraction.
+    backend : factorization backend (``solvers.Factor``). excess_tol : an iteration that lowers the energy by less
+    than this fraction of its excess over an isometry (Ψ - 4) also counts as small (0: off; the atlas's joint
+    polish). stall_iters : barrier-limited iterations in a row that gain < ``tol`` before the polish gives up.
+    confirm_light : an uncut step that gains < ``tol`` stops the polish only at the scaffold's lightest weight
+    (one more iteration there to confirm it); False stops at once (a fine level after a coarse one). park : a pause
+    frees the factorization and the Hessian's pattern (False keeps them: a trial usually finished next).
+    scaffold : :class:`ScaffoldUse`. scaffold_weight : the scaffold's starting weight, a fraction of its largest
+    within [``SCAFFOLD_WEIGHT_MIN``, 1] (a fine level starts where its converged coarse level ended).
+    keep_scaffold : keep the last iteration's scaffold while it holds (``scaffold.scaffold_holds``: the Hessian's
+    pattern stays and PARDISO refactorizes without a new analysis) instead of re-triangulating at every iteration.
+    """
+
+    max_iters: int = 200
+    tol: float = 1e-6
+    backend: str = "auto"
+    excess_tol: float = 0.0
+    stall_iters: int = STALL_ITERS
+    confirm_light: bool = True
+    park: bool = True
+    scaffold: ScaffoldUse = ScaffoldUse.ALWAYS
+    scaffold_weight: float = 1.0
+    keep_scaffold: bool = False
+
+
+class _Next(Enum):
+    """What follows one iteration of :meth:`Polish._run`."""
+
+    GO_ON = 0
+    STOP = 1
+    PAUSE = 2
+
+
+FULL_STEP = 0.5  # a step of at least half the Newton step counts as uncut ("Stopping")
+
+
+def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray], *, bar=None,
+           guards: np.ndarray | None = None, groups: np.ndarray | None = None, **settings) -> tuple[np.ndarray, dict]:
     """Minimize the symmetric Dirichlet energy Σ A_f Ψ(J_f) from a bijective layout ``uv`` (n,2), keeping it bijective
     (the scheme: module docstring). g (m,3,2): hat gradients of the rest triangles; area (m,): their areas; loops:
     boundary loops, outer first; guards (k,3): extra triangles, positive in ``uv``, without energy but kept
-    positive like the others (``multilevel.coarse_to_fine``); excess_tol: an iteration that lowers the energy by less
-    than this fraction of its excess over an isometry (Ψ - 4) also counts as small (0: off; ``refine.charts``);
-    scaffold, groups: False polishes without one, each chart of ``groups`` on its own step (:class:`Polish`).
-    Returns the layout (n,2) and a JSON-able report. :class:`Polish` runs the same iterations in steps.
+    positive like the others (``multilevel``); groups (m,): the chart of each face, for ``ScaffoldUse.NEVER``;
+    ``settings``: :class:`PolishSettings` fields. Returns the layout (n,2) and a JSON-able report. :class:`Polish`
+    runs the same iterations in steps.
     """
-    run = Polish(uv, F, g, area, loops, max_iters=max_iters, tol=tol, backend=backend, bar=bar, guards=guards,
-                 excess_tol=excess_tol, scaffold=scaffold, groups=groups)
+    run = Polish(uv, F, g, area, loops, PolishSettings(**settings), bar=bar, guards=guards, groups=groups)
     run.run()
     return run.x, run.report()
 
@@ -496,54 +567,37 @@ class Polish:
     """:func:`polish` as an object that can pause and go on: ``run(pause_excess)`` iterates until the polish stops
     or (``pause_excess`` > 0) an iteration lowers the energy by less than that fraction of its excess over an
     isometry; ``run()`` again goes on from there, so a paused and resumed polish makes exactly the iterations (and
-    the layout) of one that never paused. ``x`` (n,2) is the current layout, ``done`` whether it has stopped.
-    ``scaffold_weight``: the scaffold's starting weight, a fraction of its largest (module docstring) within
-    [``SCAFFOLD_WEIGHT_MIN``, 1]; ``report()`` gives the current one (a fine level starts where its converged
-    coarse level ended: ``multilevel.multilevel_polish``). ``keep_scaffold``: keep the last iteration's scaffold
-    while it holds (``scaffold.scaffold_holds``; the Hessian's pattern then stays and PARDISO refactorizes without
-    a new analysis) instead of re-triangulating at every iteration: for a fine level, whose layout moves little.
-    ``scaffold`` False: no scaffold at all; ``groups`` (m,) the chart of each face (default one), the charts being
-    separate components, each takes its own step, checked instead of barred: halved until no two of its boundary
-    edges cross (``_chart_steps``): for many small charts polished together (``refine.charts``; BENCHMARKS §20).
-    ``scaffold="until crossing"``: without one while no boundary crosses at the line search's step (no halving),
-    then that iteration again and the rest with the scaffold (``report()["scaffold_from_iteration"]``, None if
-    never): for a fine level after a converged coarse one, whose boundary stays put (``multilevel.FINE_BARE``).
-    ``stall_iters``: barrier-limited iterations in a row that gain < ``tol`` before it gives up (the levels of a
-    coarse-to-fine polish stop sooner: ``multilevel.COARSE_STALL_ITERS``). ``park`` False: a pause keeps the
-    factorization and the Hessian's pattern (for the last of the seams stage's trials, which is usually finished
-    right after: ``pipeline.seams``); True frees them while paused (:meth:`_park`). ``confirm_light`` False: an uncut
-    step that gains < ``tol`` stops the polish whatever the scaffold's weight, without the confirming iteration at
-    the lightest (module docstring, "Stopping"; the finest level after a coarse one:
-    ``multilevel.FINE_CONFIRM_LIGHT``)."""
+    the layout) of one that never paused. ``x`` (n,2) is the current layout, ``done`` whether it has stopped,
+    ``stop`` why (:class:`Stop`). ``settings``: :class:`PolishSettings`. ``groups`` (m,): the chart of each face
+    (default one) for ``ScaffoldUse.NEVER``: the charts being separate components, each takes its own step, checked
+    instead of barred (:func:`_chart_steps`). ``guards`` (k,3): triangles without energy that the line search keeps
+    positive. ``prepared``: the Hessian's pattern and analysis made ahead of time (:func:`prepare_hessian`).
+    ``report()["scaffold_from_iteration"]`` (``UNTIL_CROSSING``): where the scaffold was taken, None if never."""
 
-    def __init__(self, uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray], *,
-                 max_iters: int = 200, tol: float = 1e-6, backend: str = "auto", bar=None,
-                 guards: np.ndarray | None = None, excess_tol: float = 0.0, scaffold_weight: float = 1.0,
-                 keep_scaffold: bool = False, scaffold: bool | str = True, groups: np.ndarray | None = None,
-                 stall_iters: int = STALL_ITERS, park: bool = True, confirm_light: bool = True,
-                 prepared: Prepared | None = None):
+    def __init__(self, uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray],
+                 settings: PolishSettings | None = None, *, bar=None, guards: np.ndarray | None = None,
+                 groups: np.ndarray | None = None, prepared: Prepared | None = None):
         t0 = time.perf_counter()
-        self._prepared = prepared
-        self.stall_iters, self.park, self.confirm_light = stall_iters, park, confirm_light
-        self.keep_scaffold = keep_scaffold
-        self.F, self.g, self.loops, self.bar, self.tol, self.excess_tol = F, g, loops, bar, tol, excess_tol
+        settings = PolishSettings() if settings is None else settings
+        self.settings, self._prepared = settings, prepared
+        self.F, self.g, self.loops, self.bar = F, g, loops, bar
         n = len(uv)
-        self.backend = large_system_backend(2 * n, backend, POLISH_PARDISO_MIN_UNKNOWNS)
+        self.backend = large_system_backend(2 * n, settings.backend, POLISH_PARDISO_MIN_UNKNOWNS)
         self.w_surf = area / area.sum()
         self.w_max = SCAFFOLD_WEIGHT * float(self.w_surf.mean())
         self.w_min = SCAFFOLD_WEIGHT_MIN * self.w_max
-        self.w_scaf = float(np.clip(scaffold_weight, SCAFFOLD_WEIGHT_MIN, 1.0)) * self.w_max
-        self.scaffold_after_crossing = scaffold == "until crossing"
+        self.w_scaf = float(np.clip(settings.scaffold_weight, SCAFFOLD_WEIGHT_MIN, 1.0)) * self.w_max
         self.crossing_switch = None
-        if scaffold is False:  # nothing to relax: the stop rules see the lightest weight
+        if settings.scaffold is ScaffoldUse.NEVER:  # nothing to relax: the stop rules see the lightest weight
             self.w_scaf = self.w_min
-        self.scaffold = scaffold is True
-        self.groups = None if scaffold is True else ChartGroups.of(F, n, loops, groups, self.w_surf)
+        self.scaffold = settings.scaffold is ScaffoldUse.ALWAYS
+        self.groups = None if self.scaffold else ChartGroups.of(F, n, loops, groups, self.w_surf)
         self.x = uv.copy()
         self.hist: list[float] = []
-        self.fac, self.refactorizations, self.it, self.converged, self.stop = None, 0, 0, False, "iteration cap"
+        self.fac, self.refactorizations, self.it, self.converged = None, 0, 0, False
+        self.stop, self.stop_detail = Stop.ITERATION_CAP, ""
         self.small = self.small_excess = 0
-        self.max_iters = max_iters
+        self.max_iters = settings.max_iters
         self.done = False
         self._H_last = self._parked = self.pat = None
         self._ok: tuple | None = None  # (x, J, Es) of the last layout a scaffold was built around
@@ -554,10 +608,9 @@ class Polish:
         # Ψ ≥ 4 on every face (equality iff isometric), so no step can gain more than Es - 4: below the
         # Newton-decrement threshold the start is the minimum (the LSCM start of a developable part) and nothing is
         # assembled
-        if np.isfinite(self.Es) and self.Es - 4.0 <= DECREMENT_TOL * tol * self.Es:
+        if np.isfinite(self.Es) and self.Es - 4.0 <= DECREMENT_TOL * settings.tol * self.Es:
             self.hist.append(self.Es)
-            self.max_iters, self.converged = 0, True
-            self.stop = "converged (the start is an isometry to within the tolerance)"
+            self.max_iters, self.converged, self.stop = 0, True, Stop.START_IS_MINIMUM
         self.guards = np.zeros((0, 3), dtype=np.int64) if guards is None else guards
         self.gg = hat_gradients(self.x[self.guards])  # any positive rest triangle will do: only det J's sign counts
         self.seconds = time.perf_counter() - t0
@@ -592,106 +645,127 @@ class Polish:
             self.pat = HessianPattern(self.F, len(self.x), upper=self.backend == "pardiso")
 
     def _run(self, pause_excess: float) -> bool:
-        F, g, w_surf, tol, excess_tol = self.F, self.g, self.w_surf, self.tol, self.excess_tol
-        full_step = 0.5  # a step of at least half the Newton step counts as uncut
         self._unpark()
         while self.it < self.max_iters:
             self.it += 1
-            try:
-                sy = _system(self.x, self.J, self.Es, F, g, w_surf, self.w_scaf, self.loops, self.pat,
-                             self._sc if self.keep_scaffold else None, self.scaffold)
-            except ValueError as exc:
-                self.stop = f"scaffold failed: {exc}"
-                if self._ok is not None:  # the last step left boundaries touching: keep the layout before it
-                    (self.x, self.J, self.Es), self.it = self._ok, self.it - 1
-                    self.stop += " (after the last step; the layout before it is kept)"
+            after = self._iteration(pause_excess)
+            if after is _Next.STOP:
                 break
-            self._ok = (self.x, self.J, self.Es)  # a valid scaffold around x: no boundaries touch or cross
-            self._sc = sy.sc
-            if self._prepared is not None:  # the first Hessian: without a scaffold it has the prepared pattern
-                analysis, self._prepared = self._prepared.analysis, None
-                if analysis is not None and self.fac is None and sy.sc is None:
-                    try:
-                        self.fac = analysis.result()  # its first refactor() is a numerical factorization only
-                    except Exception:  # noqa: BLE001 - only a head start: the factorization is made here as ever
-                        self.fac = None
-            self.hist.append(self.Es)
-            direction = _safe_direction(sy, self.fac, self.backend)
-            if isinstance(direction, str):
-                self.stop = direction
-                break
-            dx, self.fac, fresh = direction
-            self.refactorizations += fresh
-            if fresh and self.fac.rebuild_matrix() is None:  # what rebuilds this factor after a pause
-                self._H_last = sy.H
-            # a negligible Newton decrement: the start is already the minimum (module docstring, "Stopping")
-            if 0.5 * float(sy.rhs @ dx) <= DECREMENT_TOL * tol * sy.E0:
-                self.converged, self.stop = True, "converged"
-                break
-            step = _barrier_step(self.x, self.J, self.Es, dx, F, g, w_surf, sy.sc, self.guards, self.gg, self.loops,
-                                 self.groups, 0 if self.scaffold_after_crossing else CROSSING_HALVINGS)
-            if step is None:
-                if self.scaffold_after_crossing and not self.scaffold:  # boundaries in the way: this iteration
-                    self.scaffold, self.crossing_switch = True, self.it  # again, and the rest, with the scaffold
-                    self.it -= 1
-                    self.hist.pop()
-                    continue
-                self.stop = "no descent"
-                break
-            t, move = step
-            self.x = self.x + move
-            self.J = jacobians(self.x, F, g)
-            Es1 = symmetric_dirichlet(self.J, w_surf)[0]
-            if self.bar is not None:
-                self.bar.set_postfix_str(f"energy {Es1 / 4:.5f} (1 = isometry)", refresh=False)
-                self.bar.update(1)
-            self.Es = Es1
-            gain = self.hist[-1] - Es1
-            low_excess = excess_tol > 0 and gain < excess_tol * (Es1 - 4.0)
-            self.small_excess = self.small_excess + 1 if low_excess else 0
-            if low_excess and self.small_excess >= EXCESS_STALL_ITERS:
-                self.hist.append(Es1)
-                self.converged = True
-                self.stop = f"converged (gains below {excess_tol:g} of the excess over an isometry)"
-                break
-            # the next gain as this one times its ratio to the last (Newton's gains shrink at least that fast near
-            # the minimum): below the excess rule, the iteration is not made
-            last = self.hist[-2] - self.hist[-1] if len(self.hist) > 1 else 0.0
-            if (EXCESS_PREDICT and excess_tol > 0 and 0 < gain < last
-                    and gain * gain / last < excess_tol * (Es1 - 4.0)):
-                self.hist.append(Es1)
-                self.converged = True
-                self.stop = f"converged (next gain predicted below {excess_tol:g} of the excess over an isometry)"
-                break
-            if gain / self.hist[-1] < tol or low_excess:
-                self.small += 1  # converged only after an uncut step with the lightest scaffold ("Stopping")
-                if t >= full_step and self.scaffold and self.w_scaf > self.w_min and self.confirm_light:
-                    self.w_scaf = self.w_min
-                    continue
-                if t >= full_step or self.small >= self.stall_iters:
-                    self.hist.append(Es1)
-                    self.converged = t >= full_step
-                    self.stop = "converged" if t >= full_step else "stalled at the barrier"
-                    break
-            else:
-                self.small = 0
-            # relax the scaffold while Newton steps go through uncut ("Scaffold weight")
-            self.w_scaf = (max(self.w_scaf / SCAFFOLD_ADAPT, self.w_min) if t >= full_step
-                           else min(self.w_scaf * SCAFFOLD_ADAPT, self.w_max))
-            if pause_excess > 0 and gain < pause_excess * (Es1 - 4.0):
-                if self.park:
+            if after is _Next.PAUSE:
+                if self.settings.park:
                     self._park()
                 return False
         self.done = True
         self.fac = self.pat = self._H_last = self._prepared = None  # stopped: nothing more to solve
         return True
 
+    def _stopped(self, why: Stop, converged: bool = False, detail: str = "") -> _Next:
+        self.stop, self.stop_detail, self.converged = why, detail, converged
+        return _Next.STOP
+
+    def _iteration(self, pause_excess: float) -> _Next:
+        """One Newton iteration: the system, its direction, the bijective step, then the stop rules."""
+        sy = self._system()
+        if sy is None:
+            return _Next.STOP
+        self.hist.append(self.Es)
+        direction = _safe_direction(sy, self.fac, self.backend)
+        if isinstance(direction, str):
+            return self._stopped(Stop.NUMERICAL_FAILURE, detail=direction)
+        dx, self.fac, fresh = direction
+        self.refactorizations += fresh
+        if fresh and self.fac.rebuild_matrix() is None:  # what rebuilds this factor after a pause
+            self._H_last = sy.H
+        # a negligible Newton decrement: the start is already the minimum (module docstring, "Stopping")
+        if 0.5 * float(sy.rhs @ dx) <= DECREMENT_TOL * self.settings.tol * sy.E0:
+            return self._stopped(Stop.CONVERGED, converged=True)
+        step = _barrier_step(self.x, self.J, self.Es, dx, self.F, self.g, self.w_surf, sy.sc, self.guards, self.gg,
+                             self.loops, self.groups, 0 if self.settings.scaffold is ScaffoldUse.UNTIL_CROSSING
+                             else CROSSING_HALVINGS)
+        if step is None:
+            if self.settings.scaffold is ScaffoldUse.UNTIL_CROSSING and not self.scaffold:
+                # boundaries in the way: this iteration again, and the rest, with the scaffold
+                self.scaffold, self.crossing_switch = True, self.it
+                self.it -= 1
+                self.hist.pop()
+                return _Next.GO_ON
+            return self._stopped(Stop.NO_DESCENT)
+        t, move = step
+        self.x = self.x + move
+        self.J = jacobians(self.x, self.F, self.g)
+        self.Es = symmetric_dirichlet(self.J, self.w_surf)[0]
+        if self.bar is not None:
+            self.bar.set_postfix_str(f"energy {self.Es / 4:.5f} (1 = isometry)", refresh=False)
+            self.bar.update(1)
+        return self._judge(t, self.Es, pause_excess)
+
+    def _system(self) -> _System | None:
+        """The iteration's system (:func:`_system`), or None when its scaffold could not be built (the stop set)."""
+        try:
+            sy = _system(self.x, self.J, self.Es, self.F, self.g, self.w_surf, self.w_scaf, self.loops, self.pat,
+                         self._sc if self.settings.keep_scaffold else None, self.scaffold)
+        except ValueError as exc:
+            detail = str(exc)
+            if self._ok is not None:  # the last step left boundaries touching: keep the layout before it
+                (self.x, self.J, self.Es), self.it = self._ok, self.it - 1
+                detail += " (after the last step; the layout before it is kept)"
+            self._stopped(Stop.SCAFFOLD_FAILED, detail=detail)
+            return None
+        self._ok = (self.x, self.J, self.Es)  # a valid scaffold around x: no boundaries touch or cross
+        self._sc = sy.sc
+        if self._prepared is not None:  # the first Hessian: without a scaffold it has the prepared pattern
+            analysis, self._prepared = self._prepared.analysis, None
+            if analysis is not None and self.fac is None and sy.sc is None:
+                try:
+                    self.fac = analysis.result()  # its first refactor() is a numerical factorization only
+                except Exception:  # noqa: BLE001 - only a head start: the factorization is made here as ever
+                    self.fac = None
+        return sy
+
+    def _judge(self, t: float, Es1: float, pause_excess: float) -> _Next:
+        """The stop rules after a step of length ``t`` to energy ``Es1`` (module docstring, "Stopping"), the
+        scaffold's weight relaxed or stiffened ("Scaffold weight"), and whether to pause."""
+        tol, excess_tol = self.settings.tol, self.settings.excess_tol
+        gain = self.hist[-1] - Es1
+        low_excess = excess_tol > 0 and gain < excess_tol * (Es1 - 4.0)
+        self.small_excess = self.small_excess + 1 if low_excess else 0
+        if low_excess and self.small_excess >= EXCESS_STALL_ITERS:
+            self.hist.append(Es1)
+            return self._stopped(Stop.EXCESS_GAINS, converged=True)
+        # the next gain as this one times its ratio to the last (Newton's gains shrink at least that fast near
+        # the minimum): below the excess rule, the iteration is not made
+        last = self.hist[-2] - self.hist[-1] if len(self.hist) > 1 else 0.0
+        if excess_tol > 0 and 0 < gain < last and gain * gain / last < excess_tol * (Es1 - 4.0):
+            self.hist.append(Es1)
+            return self._stopped(Stop.EXCESS_PREDICTED, converged=True)
+        if gain / self.hist[-1] < tol or low_excess:
+            self.small += 1  # converged only after an uncut step with the lightest scaffold ("Stopping")
+            if t >= FULL_STEP and self.scaffold and self.w_scaf > self.w_min and self.settings.confirm_light:
+                self.w_scaf = self.w_min
+                return _Next.GO_ON
+            if t >= FULL_STEP or self.small >= self.settings.stall_iters:
+                self.hist.append(Es1)
+                uncut = t >= FULL_STEP
+                return self._stopped(Stop.CONVERGED if uncut else Stop.STALLED, converged=uncut)
+        else:
+            self.small = 0
+        self.w_scaf = (max(self.w_scaf / SCAFFOLD_ADAPT, self.w_min) if t >= FULL_STEP
+                       else min(self.w_scaf * SCAFFOLD_ADAPT, self.w_max))
+        if pause_excess > 0 and gain < pause_excess * (Es1 - 4.0):
+            return _Next.PAUSE
+        return _Next.GO_ON
+
+    def stop_text(self) -> str:
+        """Why the polish stopped, as the report says it."""
+        return self.stop.value.format(detail=self.stop_detail, excess_tol=self.settings.excess_tol)
+
     def report(self) -> dict:
         """The JSON-able report (``stop`` says "paused" while the polish has not stopped)."""
         hist = self.hist or [self.Es]  # no iteration yet (a fine level waiting paused: ``multilevel.Levels``)
-        return {"iterations": self.it, "converged": self.converged, "stop": self.stop if self.done else "paused",
+        return {"iterations": self.it, "converged": self.converged, "stop": self.stop_text() if self.done else "paused",
                 "energy_start": float(hist[0] / 4),
                 "energy_end": float((hist[-1] if self.done else self.Es) / 4),
                 "factorizations": self.refactorizations, "backend": self.backend,
                 "scaffold_weight": self.w_scaf / self.w_max, "seconds": round(self.seconds, 3),
-                **({"scaffold_from_iteration": self.crossing_switch} if self.scaffold_after_crossing else {})}
+                **({"scaffold_from_iteration": self.crossing_switch}
+                   if self.settings.scaffold is ScaffoldUse.UNTIL_CROSSING else {})}

@@ -1,33 +1,13 @@
-"""Starts for a mesh cut open along seams: its conformal layout with crossing slits reopened (the seams stage
-offers it), and the uncut map with its slits opened slightly (measured worse, off).
+"""A start for a mesh cut open along seams: its conformal layout with the slits that cross reopened.
 
-**The conformal layout, crossing slits reopened** (:func:`reopen_crossing_slits`). The conformal layout of the cut
-mesh (``layout.conformal``: free boundary) is smooth and low in energy, but where a seam leaves a small hole the
-copies of its first edge can cross: the slit's mouth closes past zero width (beetle: 4 crossing pairs at two small
-holes). Then it is no start, and the polish began at Tutte's embedding (beetle: energy 37.6, 24 Newton
-iterations). The crossings are local: the copies of every seam vertex on a crossing boundary edge are moved to
-their mean (the slit closed there, as in the surface before the cut) and pushed apart into their own sides as
-:func:`open_slits` does; where that leaves a crossing, the seam vertices near them join (``REOPEN_WIDEN``).
-Measured (2026-12-02): beetle, 5 seam vertices closed, energy 1.2137 unchanged to 1e-6, bijective; the polish from
-it takes 9 Newton iterations instead of 24 from Tutte, to a slightly lower minimum (energy 1.0006934 vs 1.0006964,
-iso mean 1.01918 vs 1.01919). beetle upsampled to 311k: the sides of one slit lie swapped along a stretch, 47 seam
-vertices closed (8 widenings), energy 1.2736; coarse level 12 and fine polish 11 Newton iterations (from Tutte:
-50), iso mean 1.0189 (1.0193).
-
-**The uncut map, slits opened** (:func:`open_slits`). The bijective map of the uncut surface already lays out the
-cut surface: give every copy of a seam vertex its source's position. Every face keeps its positive area, but each
-seam's two sides coincide (a zero-width slit), so the boundary touches itself and the scaffold cannot be
-triangulated. :func:`open_slits` moves each copy a small distance into its own side (along the inward normal of the
-cut boundary at it), shrinking the step wherever an incident face would lose more than half its area, and accepts
-the result only when it is bijective (no flipped face, no boundary crossing).
-
-Measured (2026-12-01, ``bench/bench_seams.py``), it is not the default start of the cut mesh: on beetle its energy
-is 1.0106 against Tutte's 37.6, but the polish from it ends in a worse minimum (1.0039 vs 1.0007, iso mean 1.041
-vs 1.019) after more Newton iterations (67 vs 44): each slit's sides stay where the uncut map put them, facing each
-other, and the scaffold keeps them from passing; opening the slits wider (0.45 instead of 0.25 of the shortest
-edge) reached the same minimum. A free-boundary Newton step without the scaffold crosses the slits at once (its
-direction shears the two sides past each other). On halftunnel LSCM's start is lower (1.218 vs 1.300) and wins.
-``pipeline.seams.seams_stage(uncut_start=True)`` offers it as the candidate ``"uncut"``.
+The conformal layout of the cut mesh (``layout.conformal``: free boundary) is smooth and low in energy, but where
+a seam leaves a small hole the copies of its first edge can cross: the slit's mouth closes past zero width (beetle:
+4 crossing pairs at two small holes). Then it is no start, and the polish would begin at Tutte's embedding (beetle:
+energy 37.6 against 1.21). The crossings are local: the copies of every seam vertex on a crossing boundary edge are
+moved to their mean (the slit closed there, as in the surface before the cut) and pushed a little into their own
+sides (along the cut boundary's inward normal, the step shrunk wherever a face would lose half its area); where that
+still leaves a crossing, the seam vertices near them join (``REOPEN_WIDEN``). The seams stage offers the result to
+the refinement as the start candidate ``"conformal_reopened"`` (BENCHMARKS.md §14).
 """
 
 from __future__ import annotations
@@ -62,7 +42,7 @@ def _inward_normals(uv: np.ndarray, bnd: np.ndarray) -> np.ndarray:
 
 
 def _push_apart(uv: np.ndarray, F: np.ndarray, bnd: np.ndarray, moved: np.ndarray) -> tuple[np.ndarray | None, dict]:
-    """Move the seam-vertex copies ``moved`` (k,) of the layout ``uv`` (n,2), whose faces are all positive,
+    """Push the seam-vertex copies ``moved`` (k,) of the layout ``uv`` (n,2), whose faces are all positive,
     ``SLIT_STEP`` × their shortest edge along the inward normal of the boundary ``bnd`` (k,2)
     (``mesh.topology.boundary_edges``) at them, halving the step of the vertices of any face left with less than
     ``SLIT_MIN_AREA_FRACTION`` of its area; (layout or None, report)."""
@@ -100,32 +80,6 @@ def _push_apart(uv: np.ndarray, F: np.ndarray, bnd: np.ndarray, moved: np.ndarra
     if crossings:
         return None, {"reason": f"the opened slits cross a boundary ({crossings} pairs)"}
     return x, {"moved": int(len(moved)), "halvings": halvings}
-
-
-def open_slits(uv: np.ndarray, F: np.ndarray, source: np.ndarray) -> tuple[np.ndarray | None, dict]:
-    """Open the zero-width slits of a cut mesh laid out by its uncut map.
-
-    Parameters
-    ----------
-    uv : (n_s,2) float64, the cut mesh's vertices at their uncut positions (``uv_uncut[source]``), faces
-        counter-clockwise.
-    F : (m,3) int64, the cut mesh's faces.
-    source : (n_s,) int64, the uncut vertex of each cut vertex (``mesh.seams.cut_open``); vertices sharing a
-        source are the copies of one seam vertex.
-
-    Returns
-    -------
-    (layout (n_s,2) or None, report): the layout is bijective (no flipped face, no boundary crossing); None with
-    the reason in the report when no such opening was found.
-    """
-    uv = np.asarray(uv, dtype=np.float64)
-    moved = np.flatnonzero(np.bincount(source)[source] > 1)
-    if len(moved) == 0:
-        return None, {"reason": "no seams"}
-    flipped = int((signed_areas(uv, F) <= 0).sum())
-    if flipped:
-        return None, {"reason": f"the uncut map has {flipped} flipped faces"}
-    return _push_apart(uv, F, boundary_edges(F), moved)
 
 
 #: :func:`reopen_crossing_slits` closes the seam vertices on crossing edges, then, until the reopened layout is
@@ -190,4 +144,4 @@ def reopen_crossing_slits(uv: np.ndarray, F: np.ndarray, source: np.ndarray) -> 
     return None, report
 
 
-__all__ = ["open_slits", "reopen_crossing_slits"]
+__all__ = ["reopen_crossing_slits"]

@@ -103,9 +103,9 @@ def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk
                  extra: dict[str, np.ndarray] | None = None) -> tuple[np.ndarray, dict]:
     """The polish's start: of the MDS layout ``uv`` (n,2) (a few flipped faces repaired: :func:`repaired_layout`;
     None = not computed), the conformal layout (``lscm`` if given, else :func:`lscm_start`) and the ``extra`` named
-    layouts (n,2) (e.g. ``"uncut"``: the seams stage's uncut map with its slits opened), the bijective one (no
-    flipped face, no crossing of any boundary loop) with the lowest energy; if none is bijective, Tutte's
-    embedding of the disk. Returns (layout (n,2), the report's ``start`` part)."""
+    layouts (n,2) (e.g. ``"conformal_reopened"``: the cut mesh's conformal layout, its crossing slits reopened),
+    the bijective one (no flipped face, no crossing of any boundary loop) with the lowest energy; if none is
+    bijective, Tutte's embedding of the disk. Returns (layout (n,2), the report's ``start`` part)."""
     if lscm is None:
         lscm = lscm_start(V, F, conformal, (g, area))
     cands: dict[str, np.ndarray] = {}

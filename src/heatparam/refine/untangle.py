@@ -12,7 +12,7 @@ with ε ≈ 0 (a barrier: χ ≈ D) improves the worst triangles without flippin
 free parameter): with a small λ the repaired triangles come out thin (a 50k-vertex halftunnel's coarse-to-fine
 start: symmetric Dirichlet energy 36 after λ = 10⁻³, 1.36 after λ = 1/2).
 
-Used by :func:`heatparam.refine.multilevel.coarse_to_fine` where the mean value repair of a prolongation fails
+Used by :meth:`heatparam.refine.multilevel.CoarseLevel.repaired` where the mean value repair of a prolongation fails
 (flips beside a locked, non-convex boundary: mean value interpolation is flip-free only inside convex regions).
 """
 
