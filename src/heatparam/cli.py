@@ -142,11 +142,17 @@ def _add_unwrap(sub) -> None:
     u.add_argument("--fit-tolerance", type=_positive, metavar="TOL",
                    help="STEP: largest distance of the B-spline surface from the mesh's vertices (model units; "
                         "default: 0.1%% of the bounding-box diagonal)")
-    for opt in cli_options():
-        _add_option(u, opt)
+    _add_options(u)
     u.add_argument("--report", metavar="R.json", help="write a JSON report (parameters, timings, metrics)")
     u.add_argument("--preview", metavar="P.png", help="write a PNG: UV layout coloured by distortion + 3D view")
     u.add_argument("--quiet", action="store_true", help="no progress output")
+
+
+def _add_options(p: argparse.ArgumentParser, only=None) -> None:
+    """The table's options (``options.cli_options``) as flags of ``p``; ``only``: those names alone."""
+    for opt in cli_options():
+        if only is None or opt.name in only:
+            _add_option(p, opt)
 
 
 def _add_batch(sub) -> None:
@@ -155,8 +161,7 @@ def _add_batch(sub) -> None:
                                    "cluster (default) or the scheduler at --scheduler; resumable; writes "
                                    "OUTDIR/summary.csv, summary.json and index.html.")
     _add_batch_arguments(b)
-    for opt in cli_options():
-        _add_option(b, opt)
+    _add_options(b)
     b.add_argument("--quiet", action="store_true", help="no progress output")
 
 
@@ -166,9 +171,7 @@ def _add_geodesics(sub) -> None:
     g.add_argument("input", help="mesh file")
     g.add_argument("--source", nargs="+", required=True, metavar="I", help="source vertex indices")
     g.add_argument("-o", "--output", required=True, help="output .npy")
-    for opt in cli_options():
-        if opt.name in HEAT_OPTIONS:
-            _add_option(g, opt)
+    _add_options(g, only=HEAT_OPTIONS)
     g.add_argument("--quiet", action="store_true", help="no progress output")
 
 

@@ -383,7 +383,7 @@ def test_seams_not_tried_where_no_cut_map_could_be_kept(monkeypatch):
 def test_seams_not_tried_where_the_coarse_level_is_near_an_isometry(monkeypatch):
     """Scan noise, not the holes, makes the map far from an isometry (noise 0.2 × the edge length, iso mean 1.054)
     while its coarse level (coarse-to-fine forced: 10k-vertex threshold, 2.3k coarse vertices) is within 1.7% of
-    one: no cut could lower the iso mean by 2% (``seams._noise_bound``), so the cut is not tried; with the trial
+    one: no cut could lower the iso mean by 2% (``seams.noise_bound``), so the cut is not tried; with the trial
     (the bound switched off) the cut map lost and the kept map is the same bit for bit."""
     from heatparam import options
     from heatparam.pipeline import seams
@@ -396,7 +396,7 @@ def test_seams_not_tried_where_the_coarse_level_is_near_an_isometry(monkeypatch)
     assert not s["used"] and "iso_mean_with" not in s and "noise" in s["reason"]
     assert r.report["metrics"]["iso_mean"] > 1 + options.SEAM_TRY_EXCESS  # the old rule would have tried the cut
     assert ml["coarse_iso_mean"] - 1 < options.SEAM_MIN_GAIN * r.report["metrics"]["iso_mean"]
-    monkeypatch.setattr(seams, "_noise_bound", lambda flat: None)
+    monkeypatch.setattr(seams, "noise_bound", lambda flat: None)
     old = parameterize(V, F, refine_multilevel=10_000)
     so = old.report["method"]["seams"]
     assert not so["used"] and so["iso_mean_with"] > so["iso_mean_without"] * (1 - options.SEAM_MIN_GAIN)
@@ -414,13 +414,13 @@ def test_noise_bound_needs_a_bijective_coarse_to_fine_map():
         return Flat(None, {"iso_mean": iso, "bijective": bijective}, {"refine": {"multilevel": ml}}, None, None, [],
                     (lambda: None) if paused else None)
 
-    assert seams._noise_bound(flat(1.015)) is not None
+    assert seams.noise_bound(flat(1.015)) is not None
     for f in (flat(None), flat(1.015, used=False), flat(1.015, bijective=False), flat(1.025)):
-        assert seams._noise_bound(f) is None
+        assert seams.noise_bound(f) is None
     # paused at 1.056: it may finish as low as 1 + 0.75 × 0.056 = 1.042, and 2% of that is 0.02084
-    assert seams._noise_bound(flat(1.0205, paused=True)) is not None
-    assert seams._noise_bound(flat(1.0209, paused=True)) is None
-    assert seams._noise_bound(flat(1.0209)) is not None
+    assert seams.noise_bound(flat(1.0205, paused=True)) is not None
+    assert seams.noise_bound(flat(1.0209, paused=True)) is None
+    assert seams.noise_bound(flat(1.0209)) is not None
 
 
 @pytest.mark.parametrize("case", ["halftunnel", "noisy cylinder"])

@@ -230,11 +230,11 @@ def _no_cut_reason(surface: Surface, opts, flat: Flat) -> str | None:
         if flat.summary["bijective"] and iso <= 1 + SEAM_TRY_EXCESS:  # options.SEAM_TRY_EXCESS: nothing to gain
             return (f"the map without seams is bijective and near-isometric (iso mean {iso:.4f}): no cut map could "
                     f"lower it by {SEAM_MIN_GAIN:.0%} (an iso mean is at least 1)")
-        return _noise_bound(flat)
+        return noise_bound(flat)
     return None
 
 
-def _noise_bound(flat: Flat) -> str | None:
+def noise_bound(flat: Flat) -> str | None:
     """Why no cut map can be kept although the map without seams is far from an isometry: its coarse level is
     close to one (None: the bound does not rule the cut out).
 
