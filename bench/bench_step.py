@@ -35,7 +35,7 @@ from common import SHARED, load, machine, upsampled_camelhead
 import heatparam
 from heatparam import datasets
 from heatparam.formats import load_mesh
-from heatparam.formats.step import _closed, _topology, read_step, write_step
+from heatparam.formats.step import _closed, _topology, read_step, tessellation, write_step
 
 DEFLECTION = 0.1  # x tolerance
 
@@ -121,33 +121,6 @@ def _case(name: str):
     raise SystemExit(f"unknown case {name}")
 
 
-def _tessellation(shape, deflection: float):
-    """Per face: (nodes (p,3), triangles (t,3)) of the shape's BRepMesh tessellation, and the faces."""
-    from OCP.BRep import BRep_Tool
-    from OCP.BRepMesh import BRepMesh_IncrementalMesh
-    from OCP.TopAbs import TopAbs_FACE
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopLoc import TopLoc_Location
-    from OCP.TopoDS import TopoDS
-
-    BRepMesh_IncrementalMesh(shape, deflection, False, 0.5, False)
-    out = []
-    ex = TopExp_Explorer(shape, TopAbs_FACE)
-    while ex.More():
-        face = TopoDS.Face(ex.Current())
-        loc = TopLoc_Location()
-        tri = BRep_Tool.Triangulation_s(face, loc)
-        if tri is None:
-            out.append((face, np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)))
-        else:
-            trsf = loc.Transformation()
-            P = np.array([tri.Node(i).Transformed(trsf).Coord() for i in range(1, tri.NbNodes() + 1)])
-            T = np.array([tri.Triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64) - 1
-            out.append((face, P, T))
-        ex.Next()
-    return out
-
-
 def measure(path, V: np.ndarray, F: np.ndarray, tol: float) -> dict:
     import igl
     from OCP.BRepCheck import BRepCheck_Analyzer
@@ -155,7 +128,7 @@ def measure(path, V: np.ndarray, F: np.ndarray, tol: float) -> dict:
     from heatparam.formats.step import _area
 
     shape, _ = read_step(path)
-    tess = _tessellation(shape, DEFLECTION * tol)
+    tess = tessellation(shape, DEFLECTION * tol)
     per_face, nodes, tris, invalid, empty = [], [], [], 0, 0
     off = 0
     for face, P, T in tess:
@@ -207,8 +180,8 @@ def main(argv: list[str]) -> None:
     print("deviations in units of the fit tolerance (0.1% of the diagonal); s→m: tessellation nodes of the read-back "
           f"shape to the mesh, m→s: mesh vertices to that tessellation (deflection {DEFLECTION} tol)\n")
     print("| case | faces (mesh) | closed | charts | STEP faces | s→m max | s→m p99 | m→s max | m→s p99 | area % "
-          "| valid | invalid faces | shells | free edges | warnings | write_step s |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "| valid | invalid faces | unmeshed faces | shells | free edges | warnings | write_step s |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name in names:
         V, F, uv, Fuv, uv_vertex, chart = _mapped(name, maps)
         with tempfile.TemporaryDirectory() as d:
@@ -219,12 +192,12 @@ def main(argv: list[str]) -> None:
             m = measure(out, V, F, rep["tolerance"])
         print(f"| {name} | {len(F)} | {'yes' if _closed(F) else 'no'} | {len(rep['charts'])} | {m['faces']} "
               f"| {m['s2m_max']:.2f} | {m['s2m_p99']:.2f} | {m['m2s_max']:.2f} | {m['m2s_p99']:.2f} | {m['area']:+.2f} "
-              f"| {'yes' if m['valid'] else 'NO'} | {m['invalid_faces']} | {m['shells']} | {m['free_edges']} "
+              f"| {'yes' if m['valid'] else 'NO'} | {m['invalid_faces']} | {m['untessellated']} | {m['shells']} | {m['free_edges']} "
               f"| {len(rep['warnings'])} | {sec:.1f} |", flush=True)
         if "max_surface_deviation" in rep:  # what write_step itself measured and reports
             print(f"  <!-- {name}: reported max {rep['max_deviation'] / rep['tolerance']:.2f} tol (vertices "
                   f"{rep['max_vertex_deviation'] / rep['tolerance']:.2f}, surface "
-                  f"{rep['max_surface_deviation'] / rep['tolerance']:.2f}), {rep.get('creases')} crease edges -->",
+                  f"{rep['max_surface_deviation'] / rep['tolerance']:.2f}), {rep.get('creases')} crease edges, {rep.get('tolerance_splits')} splits for the tolerance -->",
                   file=sys.stderr)
         for w in rep["warnings"]:
             print(f"  <!-- {name}: {w} -->", file=sys.stderr)

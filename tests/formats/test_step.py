@@ -14,8 +14,14 @@ pytest.importorskip("OCP")
 import heatparam  # noqa: E402
 from heatparam import datasets  # noqa: E402
 from heatparam.errors import HeatparamError  # noqa: E402
-from heatparam.formats import load_mesh  # noqa: E402
-from heatparam.formats.step import inspect_step, write_step  # noqa: E402
+from heatparam.formats import (
+    load_mesh,  # noqa: E402
+    step,  # noqa: E402
+)
+from heatparam.formats.step import StepToleranceWarning, inspect_step, write_step  # noqa: E402
+
+# a face off the tolerance warns: an error here, except where a test asks for it (pytest.warns)
+pytestmark = pytest.mark.filterwarnings("error::heatparam.formats.step.StepToleranceWarning")
 
 
 def _mesh_area(V, F):
@@ -23,15 +29,19 @@ def _mesh_area(V, F):
 
 
 def _check(path, V, F, rep, max_points=None):
-    """The acceptance items: valid shape, area within 1%, every measured vertex within the fit tolerance."""
-    back = inspect_step(path, V, max_points=max_points)
-    assert back["valid"]
+    """The acceptance items, read back: shape and every face valid, area within 0.5%, every measured vertex within
+    the fit tolerance of the faces and every node of the faces' tessellation within it of the mesh."""
+    tol = rep["tolerance"]
+    back = inspect_step(path, V, max_points=max_points, faces=F, deflection=0.1 * tol)
+    assert back["valid"] and back["invalid_faces"] == 0 and back["untessellated_faces"] == 0
     area = _mesh_area(V, F)
-    assert abs(back["area"] - area) <= 0.01 * area, (back["area"], area)
-    assert back["max_distance"] <= rep["tolerance"], (back["max_distance"], rep["tolerance"])
+    assert abs(back["area"] - area) <= 0.005 * area, (back["area"], area)
+    assert back["max_distance"] <= tol, (back["max_distance"], tol)
+    assert back["surface_max_distance"] <= tol, (back["surface_max_distance"], tol)
     # the report's deviations are those of the written surface: the read-back distances cannot exceed them
-    assert back["max_distance"] <= rep["max_deviation"] * (1 + 1e-6) + 1e-12
-    assert rep["max_deviation"] <= rep["tolerance"] and not rep["warnings"]
+    assert back["max_distance"] <= rep["max_vertex_deviation"] * (1 + 1e-6) + 1e-12
+    assert rep["max_deviation"] <= tol and rep["within_tolerance"] and not rep["warnings"]
+    assert all(f["within_tolerance"] and f["valid"] and f["deviation_over_tolerance"] <= 1 for f in rep["step_faces"])
     return back
 
 
@@ -47,7 +57,7 @@ def test_developable_part_with_holes(holed_part, tmp_path):
     rep = write_step(out, V, F, r.uv, r.Fuv, r.uv_vertex)
     diag = np.linalg.norm(V.max(0) - V.min(0))
     assert rep["tolerance"] == pytest.approx(1e-3 * diag)
-    assert rep["faces"] == 1 and rep["charts"][0]["degree"] == [3, 3]
+    assert rep["faces"] == 1 and rep["charts"][0]["degree"] == [3, 3] and rep["creases"] == 0
     back = _check(out, V, F, rep)
     assert back["faces"] == 1 and back["points_measured"] == len(V)
     assert not list(tmp_path.glob(".*"))  # no temporary file left beside the output
@@ -150,6 +160,68 @@ def test_bad_input(holed_part, tmp_path):
     with pytest.raises(HeatparamError, match="NaN"):
         write_step(tmp_path / "x.step", V, F, bad, r.Fuv, r.uv_vertex)
     assert not list(tmp_path.iterdir())
+
+
+def test_cube_is_split_at_its_creases_and_sewn_shut(tmp_path):
+    """A closed cube flattened to one net: one STEP face per side (the chart crosses 90° creases), sewn into one
+    closed shell, each face within the tolerance both ways."""
+    V, F = datasets.closed_cube(side=10.0, n=6)
+    r = heatparam.parameterize(V, F)
+    out = tmp_path / "cube.step"
+    rep = write_step(out, V, F, r.uv, r.Fuv, r.uv_vertex, chart=getattr(r, "chart", None))
+    # a net of a cube: 5 of its 12 edges are folds inside the chart (creases, 6 mesh edges each), 7 are cuts
+    assert rep["faces"] == 6 and rep["creases"] == 5 * 6 and rep["sewn"]
+    assert rep["shells"] == 1 and rep["free_edges"] == 0
+    back = _check(out, V, F, rep)
+    assert back["faces"] == 6 and back["shells"] == 1 and back["free_edges"] == 0
+
+
+def test_crease_rule():
+    """60° is a crease on any mesh; 30° where the triangles are too large for a surface to round it within the
+    tolerance (h θ > 4 tol); 10° never."""
+    def hinge(deg, h):  # two triangles of height h over the edge (0,0,0)-(1,0,0), at dihedral angle deg
+        t = np.deg2rad(deg)
+        V = np.array([[0, 0, 0], [1, 0, 0], [0.5, -h, 0], [0.5, h * np.cos(t), h * np.sin(t)]], dtype=float)
+        return V, np.array([[0, 2, 1], [0, 1, 3]])
+
+    tol = 1e-3
+    for deg, h, sharp in [(60, 1e-3, True), (30, 0.1, True), (30, 1e-3, False), (10, 10.0, False)]:
+        V, F = hinge(deg, h)
+        assert step._creases(V, F, np.array([0]), np.array([1]), tol)[0] == sharp, (deg, h)
+
+
+def test_a_miss_warns_with_where_and_how_much(holed_part, tmp_path, monkeypatch):
+    """A fit held to 5x5 control points and not allowed to split cannot meet the tolerance: the file is written, the
+    report records the achieved deviation (an upper bound of what is read back) and a warning says which face,
+    where and how much."""
+    V, F, r, _ = holed_part
+    monkeypatch.setattr(step, "_START_INTERVALS", 2)
+    monkeypatch.setattr(step, "MAX_CONTROL_POINTS", 30)
+    monkeypatch.setattr(step, "_MAX_SPLITS", 0)
+    out = tmp_path / "coarse.step"
+    with pytest.warns(StepToleranceWarning, match=r"STEP face 0 \(chart 0, 3906 triangles\).*x the fit tolerance"):
+        rep = write_step(out, V, F, r.uv, r.Fuv, r.uv_vertex)
+    face = rep["step_faces"][0]
+    assert not rep["within_tolerance"] and not face["within_tolerance"] and face["control_points"] == [5, 5]
+    assert face["deviation_over_tolerance"] > 2 and rep["max_deviation"] == face["max_deviation"]
+    assert f"{face['deviation_over_tolerance']:.2f}x the fit tolerance" in rep["warnings"][0]
+    back = inspect_step(out, V, faces=F, max_points=300, deflection=0.1 * rep["tolerance"])
+    assert back["valid"] and back["max_distance"] <= face["max_vertex_deviation"] * (1 + 1e-6)
+    assert back["surface_max_distance"] <= 1.05 * face["max_deviation"]
+
+
+def test_a_face_off_the_tolerance_is_split_until_within(holed_part, tmp_path, monkeypatch):
+    """The same 5x5 cap, splits allowed: the chart is halved until every piece meets the tolerance, the pieces are
+    sewn into one valid shell, read back within the tolerance both ways, without a warning."""
+    V, F, r, _ = holed_part
+    monkeypatch.setattr(step, "_START_INTERVALS", 2)
+    monkeypatch.setattr(step, "MAX_CONTROL_POINTS", 30)
+    out = tmp_path / "split.step"
+    rep = write_step(out, V, F, r.uv, r.Fuv, r.uv_vertex)
+    assert rep["tolerance_splits"] > 0 and rep["faces"] > 1 and rep["sewn"] and rep["shells"] == 1
+    assert all(f["control_points"][0] * f["control_points"][1] <= 30 for f in rep["step_faces"])
+    back = _check(out, V, F, rep)
+    assert back["faces"] == rep["faces"]
 
 
 @pytest.mark.slow

@@ -57,14 +57,19 @@ UNITS = {"mm": ("MM", 1.0), "cm": ("CM", 10.0), "m": ("M", 1000.0), "in": ("INCH
 TIME_STAMP = "2000-01-01T00:00:00"  # fixed: deterministic output
 MAX_CONTROL_POINTS = 1_000_000  # per chart (a 1000 x 1000 net); beyond it the fit stops and warns
 _PENALTY = 1e-2  # weight of the control-net smoothness term, relative to the mean diagonal of the data term
-_START_INTERVALS = 32  # knot intervals along the longer side of the parameter rectangle at the first fit
+_START_INTERVALS = 32  # knot intervals along the longer side of the parameter rectangle at the first fit (at most)
 _SPLIT_AT = 0.9  # knot intervals holding a vertex deviating by more than this x tolerance are halved
 _MAX_ROUNDS = 12
-_CHECK_LEVEL = 4  # the fit is checked at the points (i, j, k)/4 of every triangle (12 besides the corners)
+_CHECK_LEVEL = 4  # the fit is checked at the points (i, j, k)/L of every triangle, L >= 4 (12 besides the corners)
+_FINEST = 8  # knot intervals are not halved below 1/8 of the (10th percentile) triangle's uv diameter
+_MAX_CHECK_LEVEL = 3 * _FINEST  # and L <= 24 (322 points)
 _CHUNK = 200_000  # points per design matrix when checking
 CREASE_ANGLE = 60.0  # degrees: a dihedral angle from which an edge is a crease, a STEP face border (see _creases)
 _SOFT_CREASE_ANGLE = 20.0  # degrees: from here, a crease where the triangles beside it are too large to round it
 _MIN_REGION = 16  # triangles: a smaller piece between creases joins its neighbour
+_MAX_SPLITS = 12  # a face whose fit misses the tolerance is split in two, at most this deep (1/4096 of it)
+_BORDER = 0.25  # x tolerance: a face's border is held closer to the mesh, so that its neighbours meet it closely
+_BORDER_WEIGHT = 10.0  # the weight of the border's points in the least squares
 
 
 def _require_ocp():
@@ -112,10 +117,30 @@ def _smoothness(nu: int, nv: int) -> sp.csr_matrix:
     return (Duu.T @ Duu + Dvv.T @ Dvv + 2.0 * Duv.T @ Duv).tocsr()
 
 
-def _halve(breaks: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Breakpoints (b,) with every interval that contains one of x (k,) halved."""
+def _halve(breaks: np.ndarray, x: np.ndarray, shortest: float = 0.0) -> np.ndarray:
+    """Breakpoints (b,) with every interval that contains one of x (k,) halved, unless its halves would be shorter
+    than ``shortest``."""
     i = np.unique(np.clip(np.searchsorted(breaks, x, side="right") - 1, 0, len(breaks) - 2))
+    i = i[breaks[i + 1] - breaks[i] >= 2 * shortest]
     return np.sort(np.concatenate([breaks, 0.5 * (breaks[i] + breaks[i + 1])]))
+
+
+def _shortest_in(breaks: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The shortest knot interval of ``breaks`` overlapping each range [lo, hi] (t,): a sparse table of minima."""
+    length = np.diff(breaks)
+    i0 = np.clip(np.searchsorted(breaks, lo, side="right") - 1, 0, len(length) - 1)
+    i1 = np.clip(np.searchsorted(breaks, hi, side="left") - 1, i0, len(length) - 1)
+    table = [length]
+    while 2 ** len(table) <= len(length):
+        prev, w = table[-1], 2 ** (len(table) - 1)
+        table.append(np.minimum(prev[:-w], prev[w:]))
+    k = np.floor(np.log2(i1 - i0 + 1)).astype(int)
+    out = np.empty(len(lo))
+    for lev in np.unique(k):
+        sel = k == lev
+        t = table[lev]
+        out[sel] = np.minimum(t[i0[sel]], t[i1[sel] - 2**lev + 1])
+    return out
 
 
 def _lattice(level: int) -> np.ndarray:
@@ -125,17 +150,55 @@ def _lattice(level: int) -> np.ndarray:
 
 
 _FIT_POINTS = np.vstack([_lattice(2), [[1 / 3, 1 / 3, 1 / 3]]])  # edge midpoints, centroid: fitted with the vertices
-_CHECK_POINTS = _lattice(_CHECK_LEVEL)  # not fitted: where the fit is checked between the data
 
 
 class _Samples:
     """Points of the mesh inside its triangles: uv (p,2), the mesh's 3D point there X (p,3) (barycentric, the map
-    being piecewise linear) and the triangle of each, for the barycentric weights W (w,3) in every triangle."""
+    being piecewise linear), the triangle of each (p,) and whether it lies on a border edge (p,). Made from the
+    triangles Fc (m,3) (rows of uv and X_row), the barycentric weights W (w,3) in each and ``border`` (m,3), whether
+    the edge opposite each corner is a border edge (a point with weight 0 at corner k lies on that edge)."""
 
-    def __init__(self, uv: np.ndarray, X_row: np.ndarray, Fc: np.ndarray, W: np.ndarray):
+    def __init__(self, uv: np.ndarray, X_row: np.ndarray, Fc: np.ndarray, W: np.ndarray, border: np.ndarray,
+                 face: np.ndarray | None = None):
         self.uv = np.einsum("wk,fkd->fwd", W, uv[Fc]).reshape(-1, 2)
         self.X = np.einsum("wk,fkd->fwd", W, X_row[Fc]).reshape(-1, 3)
-        self.face = np.repeat(np.arange(len(Fc)), len(W))
+        self.face = np.repeat(np.arange(len(Fc)) if face is None else face, len(W))
+        self.border = ((W[None, :, :] == 0) & border[:, None, :]).any(axis=2).reshape(-1)
+
+    @classmethod
+    def joined(cls, parts: list[_Samples]) -> _Samples:
+        """The samples of all the parts, in order."""
+        out = cls.__new__(cls)
+        for name in ("uv", "X", "face", "border"):
+            setattr(out, name, np.concatenate([getattr(p, name) for p in parts]))
+        return out
+
+
+def _subset(s: _Samples, keep: np.ndarray) -> _Samples:
+    """The samples ``keep`` (a mask or indices) of s."""
+    out = _Samples.__new__(_Samples)
+    for name in ("uv", "X", "face", "border"):
+        setattr(out, name, getattr(s, name)[keep])
+    return out
+
+
+def _check_samples(uv: np.ndarray, X_row: np.ndarray, Fc: np.ndarray, border: np.ndarray, bu: np.ndarray,
+                   bv: np.ndarray, faces: np.ndarray | None = None) -> _Samples:
+    """The check samples of the triangles ``faces`` (all by default) of Fc: the points (i, j, k)/L of each, L from
+    ``_CHECK_LEVEL`` (4) up to ``_MAX_CHECK_LEVEL`` so that they are at most about a third of the shortest knot
+    interval over the triangle apart: a surface cannot then ripple between them unseen (the cow's small faces,
+    their knots finer than their triangles, were up to 6.8 tolerances off the mesh between 4-level checks that met
+    it; with the knot interval at the centroid instead of the shortest, 5.1). The knots are never refined below
+    1/``_FINEST`` of the triangles (:func:`_fit_surface`), so L <= 3 ``_FINEST``."""
+    faces = np.arange(len(Fc)) if faces is None else faces
+    T = uv[Fc[faces]]  # (f,3,2)
+    diam = np.linalg.norm(T - np.roll(T, 1, axis=1), axis=2).max(axis=1)
+    lo, hi = T.min(axis=1), T.max(axis=1)
+    knot = np.minimum(_shortest_in(bu, lo[:, 0], hi[:, 0]), _shortest_in(bv, lo[:, 1], hi[:, 1]))
+    level = np.clip(np.ceil(3.0 * diam / np.maximum(knot, 1e-300)), _CHECK_LEVEL, _MAX_CHECK_LEVEL).astype(int)
+    parts = [_Samples(uv, X_row, Fc[faces[level == L]], _lattice(L), border[faces[level == L]], faces[level == L])
+             for L in np.unique(level)]
+    return _Samples.joined(parts)
 
 
 def _deviations(C: np.ndarray, tu: np.ndarray, tv: np.ndarray, uv: np.ndarray, X: np.ndarray) -> np.ndarray:
@@ -148,19 +211,25 @@ def _deviations(C: np.ndarray, tu: np.ndarray, tv: np.ndarray, uv: np.ndarray, X
     return out
 
 
-def _fit_surface(uv_v: np.ndarray, X_v: np.ndarray, fit: _Samples, check: _Samples, tol: float) -> dict:
+def _fit_surface(uv_v: np.ndarray, X_v: np.ndarray, border_v: np.ndarray, fit: _Samples, checks, tol: float,
+                 intervals: int) -> dict:
     """Fit a clamped bicubic B-spline to points X_v (k,3) at uv_v (k,2) (the vertices) and to the mesh at the
     ``fit`` samples (edge midpoints and centroids) until the surface is within ``tol`` of the mesh at the vertices,
-    at the fit samples and at the ``check`` samples (a denser lattice in every triangle, between the data).
+    at the fit samples and at the check samples ``checks(bu, bv, faces)`` (:func:`_check_samples`: a lattice in
+    every triangle, between the data, as dense as the knots), starting from ``intervals`` knot intervals along the
+    longer side.
 
     Each round: where a fitted point deviates by more than ``_SPLIT_AT`` tol, its knot intervals are halved; when
     none does, the check samples are measured, and the triangles where one deviates join the data with all their
     check samples (no knot is added then: a surface with knots finer than its data ripples between them, and
     halving the knots at the check samples made the developable part's deviation grow from 1.7 to 44 tolerances
-    in 7 rounds); the fit ends when no check sample deviates.
+    in 7 rounds); the fit ends when no check sample deviates. Points on the border (``border_v`` (k,) for the
+    vertices, ``border`` of the samples) are held to ``_BORDER`` tol and weigh ``_BORDER_WEIGHT`` in the least
+    squares: adjacent faces then meet within 2 ``_BORDER`` tol and are sewn with edges that tight.
 
     Returns dict: poles (nu,nv,3), bu (a,) and bv (b,) distinct breakpoints, dev (k,) vertex deviations, dev_fit
-    and dev_check the deviations at the fit and the check samples, rounds, within (bool).
+    and dev_check the deviations at the fit and the (last) check samples, check (those samples), dev_border (the
+    max on the border), rounds, within (bool).
     """
     from heatparam.solvers import Factor, large_system_backend
 
@@ -168,45 +237,64 @@ def _fit_surface(uv_v: np.ndarray, X_v: np.ndarray, fit: _Samples, check: _Sampl
     size = hi - lo
     pad = 0.01 * max(size.max(), 1e-300)
     lo, hi, size = lo - pad, hi + pad, size + 2 * pad
-    h = size.max() / _START_INTERVALS
+    h = size.max() / intervals
     bu = np.linspace(lo[0], hi[0], max(1, int(np.ceil(size[0] / h))) + 1)
     bv = np.linspace(lo[1], hi[1], max(1, int(np.ceil(size[1] / h))) + 1)
-    added = np.zeros(len(check.uv), dtype=bool)  # check samples fitted as data
+    T = fit.uv.reshape(-1, len(_FIT_POINTS), 2)  # (the fit samples' triangles, from their edge midpoints)
+    diam = 2 * np.linalg.norm(T[:, :3] - np.roll(T[:, :3], 1, axis=1), axis=2).max(axis=1)
+    shortest = float(np.percentile(diam, 10)) / _FINEST if len(diam) else 0.0
+    extra = []  # check samples fitted as data
+    level = {}  # triangle -> the number of check samples it has in the data
     best = None
     for rounds in range(1, _MAX_ROUNDS + 1):
-        uvd = np.concatenate([uv_v, fit.uv, check.uv[added]])
-        X = np.concatenate([X_v, fit.X, check.X[added]])
+        data = _Samples.joined([fit, *extra])
+        uvd = np.concatenate([uv_v, data.uv])
+        X = np.concatenate([X_v, data.X])
+        border = np.concatenate([border_v, data.border])
         tu, tv = _clamped(bu), _clamped(bv)
         nu, nv = len(bu) + DEGREE - 1, len(bv) + DEGREE - 1
         B = _design(uvd, tu, tv)
-        A = (B.T @ B).tocsr()
+        Bw = sp.diags(np.where(border, _BORDER_WEIGHT, 1.0)) @ B  # B^T W B, W the weights
+        A = (Bw.T @ B).tocsr()
         M = A + (_PENALTY * A.diagonal().mean()) * _smoothness(nu, nv)
         # PARDISO where installed from 10k control points (camelhead's 35k: 3.2 s vs CHOLMOD's 7.8 s, loaded machine)
         backend = large_system_backend(nu * nv, "auto", min_unknowns=10_000)
-        C = Factor(M.tocsc(), backend).solve(np.asarray(B.T @ X))
+        C = Factor(M.tocsc(), backend).solve(np.asarray(Bw.T @ X))
         dev_d = np.linalg.norm(B @ C - X, axis=1)
         k, f = len(uv_v), len(fit.uv)
         best = {"poles": C.reshape(nu, nv, 3), "bu": bu, "bv": bv, "dev": dev_d[:k], "dev_fit": dev_d[k: k + f],
-                "dev_check": None, "rounds": rounds, "tu": tu, "tv": tv}
-        bad_uv = uvd[dev_d > _SPLIT_AT * tol]
+                "dev_check": None, "check": None, "rounds": rounds, "tu": tu, "tv": tv,
+                "dev_border": dev_d[: k + f][np.concatenate([border_v, fit.border])]}
+        bad_uv = uvd[dev_d > _SPLIT_AT * np.where(border, _BORDER * tol, tol)]
         if not len(bad_uv):  # the data are met: check between them
+            check = checks(bu, bv)
             dev_c = _deviations(C, tu, tv, check.uv, check.X)
-            best["dev_check"] = dev_c
-            bad = dev_c > _SPLIT_AT * tol
+            best["dev_check"], best["check"] = dev_c, check
+            bad = dev_c > _SPLIT_AT * np.where(check.border, _BORDER * tol, tol)
             if not bad.any():
                 break
-            if (bad & ~added).any():
-                added |= np.isin(check.face, check.face[bad & ~added])
+            faces = np.unique(check.face[bad])
+            n = np.bincount(check.face, minlength=faces.max() + 1)[faces]
+            new = np.array([level.get(int(t), 0) < m for t, m in zip(faces, n, strict=True)], dtype=bool)
+            if new.any():  # those triangles' check samples join the data
+                extra.append(_subset(check, np.isin(check.face, faces[new])))
+                level.update({int(t): int(m) for t, m in zip(faces[new], n[new], strict=True)})
                 continue
             bad_uv = check.uv[bad]
-        nbu, nbv = _halve(bu, bad_uv[:, 0]), _halve(bv, bad_uv[:, 1])
+        nbu, nbv = _halve(bu, bad_uv[:, 0], shortest), _halve(bv, bad_uv[:, 1], shortest)
+        if len(nbu) == len(bu) and len(nbv) == len(bv):
+            break  # at the finest knots already
         if (len(nbu) + DEGREE - 1) * (len(nbv) + DEGREE - 1) > MAX_CONTROL_POINTS:
             break
         bu, bv = nbu, nbv
     if best["dev_check"] is None:
-        best["dev_check"] = _deviations(best["poles"].reshape(-1, 3), best["tu"], best["tv"], check.uv, check.X)
+        best["check"] = checks(best["bu"], best["bv"])
+        best["dev_check"] = _deviations(best["poles"].reshape(-1, 3), best["tu"], best["tv"], best["check"].uv,
+                                        best["check"].X)
     worst = max(best["dev"].max(), best["dev_fit"].max(initial=0.0), best["dev_check"].max(initial=0.0))
     best["within"] = bool(worst <= tol)
+    best["dev_border"] = float(max(best["dev_border"].max(initial=0.0),
+                                   best["dev_check"][best["check"].border].max(initial=0.0)))
     return best
 
 
@@ -376,9 +464,10 @@ def _area(shape) -> float:
 
 
 @contextlib.contextmanager
-def _quiet_and_units(unit: str | None):
-    """Silence OpenCascade's console messages and set the STEP length units; both restored afterwards (they are
-    process-wide)."""
+def _quiet_and_units(unit: str | None, precision: float | None = None):
+    """Silence OpenCascade's console messages, set the STEP length units and the uncertainty the file declares
+    (``precision``, in the model units; None = OpenCascade's default, the shape's least tolerance); all restored
+    afterwards (they are process-wide)."""
     from OCP.Interface import Interface_Static
     from OCP.Message import Message, Message_Gravity
     from OCP.STEPControl import STEPControl_Controller
@@ -388,14 +477,20 @@ def _quiet_and_units(unit: str | None):
     levels = [printers.Value(i).GetTraceLevel() for i in range(1, printers.Length() + 1)]
     keys = ("write.step.unit", "xstep.cascade.unit")
     old = {k: Interface_Static.CVal_s(k) for k in keys}
+    old_precision = Interface_Static.IVal_s("write.precision.mode"), Interface_Static.RVal_s("write.precision.val")
     try:
         for i in range(1, printers.Length() + 1):
             printers.Value(i).SetTraceLevel(Message_Gravity.Message_Fail)
         if unit is not None:
             for k in keys:
                 Interface_Static.SetCVal_s(k, unit)
+        if precision is not None:
+            Interface_Static.SetIVal_s("write.precision.mode", 2)  # 2: write.precision.val
+            Interface_Static.SetRVal_s("write.precision.val", float(precision))
         yield
     finally:
+        Interface_Static.SetIVal_s("write.precision.mode", old_precision[0])
+        Interface_Static.SetRVal_s("write.precision.val", old_precision[1])
         for k, v in old.items():
             if v:
                 Interface_Static.SetCVal_s(k, v)
@@ -403,7 +498,7 @@ def _quiet_and_units(unit: str | None):
             printers.Value(i).SetTraceLevel(lev)
 
 
-def _write_shape(shape, path: Path, unit: str, name: str | None = None) -> None:
+def _write_shape(shape, path: Path, unit: str, name: str | None = None, precision: float | None = None) -> None:
     from OCP.APIHeaderSection import APIHeaderSection_MakeHeader
     from OCP.IFSelect import IFSelect_RetDone
     from OCP.StepBasic import StepBasic_Product
@@ -416,7 +511,7 @@ def _write_shape(shape, path: Path, unit: str, name: str | None = None) -> None:
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp.step", dir=path.parent)
     os.close(fd)
     try:
-        with _quiet_and_units(unit):
+        with _quiet_and_units(unit, precision):
             w = STEPControl_Writer()
             if w.Transfer(shape, STEPControl_AsIs) != IFSelect_RetDone:
                 raise HeatparamError(f"cannot write {path}: OpenCascade could not translate the faces to STEP")
@@ -465,7 +560,8 @@ def write_step(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.nda
     dict, the fit report:
 
     - ``tolerance``, ``units``, ``degree``, ``faces``, ``sewn``, ``valid``, ``shells``, ``free_edges``,
-      ``area_mesh``, ``area_faces``, ``creases`` (crease edges found), ``control_points`` (total), ``seconds``;
+      ``area_mesh``, ``area_faces``, ``creases`` (crease edges found), ``tolerance_splits`` (faces split in two
+      because their fit missed the tolerance), ``control_points`` (total), ``seconds``;
     - ``max_deviation``: the worst of ``max_vertex_deviation`` (mesh vertices to the surface, ``|S(uv_i) - V_i|``)
       and ``max_surface_deviation`` (surface to the mesh, ``|S(uv) - X(uv)|`` at the edge midpoints, the centroid
       and 12 more points of every triangle, ``X`` the mesh's point at ``uv`` through the map); both are upper
@@ -488,9 +584,17 @@ def write_step(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.nda
     region, creases = _regions(V, F, Fuv, uv_vertex, chart, tol)
     diag = float(np.linalg.norm(V.max(0) - V.min(0)))
     faces, reports, notes, devs = [], [], [], []
-    for r in range(region.max() + 1):
-        fr = np.flatnonzero(region == r)
+    todo = [(np.flatnonzero(region == r), 0) for r in range(region.max() + 1)]
+    splits = 0
+    while todo:
+        fr, depth = todo.pop(0)
         face, report, dev = _region_face(len(faces), int(chart[fr[0]]), Fuv[fr], uv, X_row, tol)
+        if not report["within_tolerance"] and len(fr) > 1 and depth < _MAX_SPLITS:
+            parts = _bisect(uv, Fuv[fr])
+            todo[:0] = [(fr[p], depth + 1) for p in parts]
+            splits += 1
+            continue
+        report["face"] = len(faces)
         faces.append(face)
         reports.append(report)
         devs.append(dev)
@@ -499,7 +603,10 @@ def write_step(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.nda
         if not report["valid"]:
             notes.append(f"STEP face {report['face']} (chart {report['chart']}): OpenCascade's BRepCheck reports "
                          "it invalid")
-    shape, sewn = _assemble(faces, tol, notes)
+    # two faces' borders are each within max_border_deviation of the mesh: they meet within twice that
+    gap = 2.0 * max(f["max_border_deviation"] for f in reports)
+    sewing = float(np.clip(1.05 * gap, 0.01 * tol, 2.0 * tol))
+    shape, sewn = _assemble(faces, sewing, notes)
     valid = _valid(shape)
     if not valid:
         notes.append("OpenCascade's BRepCheck reports the shape invalid")
@@ -509,7 +616,10 @@ def write_step(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.nda
     e1, e2 = V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]
     area_mesh = float(0.5 * np.linalg.norm(np.cross(e1, e2), axis=1).sum())
     area_faces = _area(shape)
-    _write_shape(shape, Path(path), UNITS[units][0], name)
+    # the file declares the sewing tolerance as its uncertainty: with the default (the least tolerance of the shape,
+    # 1e-7) OpenCascade's reader filled the gaps of up to 2 _BORDER tol at every sewn vertex with tiny edges, and
+    # the face of two sewn charts read back could not be meshed (BRepMesh: no triangle, BRepCheck: invalid)
+    _write_shape(shape, Path(path), UNITS[units][0], name, precision=sewing)
     for note in notes:
         _warnings.warn(note, StepToleranceWarning, stacklevel=2)
     dev = np.concatenate(devs)
@@ -517,7 +627,7 @@ def write_step(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.nda
     return {
         "tolerance": tol, "units": units, "degree": [DEGREE, DEGREE], "faces": len(faces), "sewn": sewn,
         "valid": valid, "shells": shells, "free_edges": free, "area_mesh": area_mesh, "area_faces": area_faces,
-        "creases": creases, "max_deviation": worst["max_deviation"],
+        "creases": creases, "tolerance_splits": splits, "max_deviation": worst["max_deviation"],
         "max_vertex_deviation": max(f["max_vertex_deviation"] for f in reports),
         "max_surface_deviation": max(f["max_surface_deviation"] for f in reports),
         "rms_deviation": float(np.sqrt(np.mean(dev**2))),
@@ -570,20 +680,28 @@ def _topology(shape) -> tuple[int, int]:
     """(shells, free edges: the non-degenerate edges of ``shape`` bounding a single face)."""
     from OCP.BRep import BRep_Tool
     from OCP.collections import IndexedDataMap_TopoDS_Shape_List_TopoDS_Shape_TopTools_ShapeMapHasher as EdgeFaces
-    from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SHELL
-    from OCP.TopExp import TopExp, TopExp_Explorer
+    from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE
+    from OCP.TopExp import TopExp
     from OCP.TopoDS import TopoDS
 
-    shells = 0
-    ex = TopExp_Explorer(shape, TopAbs_SHELL)
-    while ex.More():
-        shells += 1
-        ex.Next()
     m = EdgeFaces()
     TopExp.MapShapesAndAncestors_s(shape, TopAbs_EDGE, TopAbs_FACE, m)
     free = sum(1 for i in range(1, m.Extent() + 1)
                if m.FindFromIndex(i).Size() == 1 and not BRep_Tool.Degenerated_s(TopoDS.Edge(m.FindKey(i))))
-    return shells, free
+    return _count(shape, "SHELL"), free
+
+
+def _count(shape, kind: str) -> int:
+    """The number of sub-shapes of a kind (``FACE``, ``SHELL``...) in ``shape``."""
+    from OCP import TopAbs
+    from OCP.TopExp import TopExp_Explorer
+
+    n = 0
+    ex = TopExp_Explorer(shape, getattr(TopAbs, f"TopAbs_{kind}"))
+    while ex.More():
+        n += 1
+        ex.Next()
+    return n
 
 
 def _checked_inputs(V, F, uv, Fuv, uv_vertex, chart, tolerance, units) -> tuple:
@@ -614,15 +732,43 @@ def _checked_inputs(V, F, uv, Fuv, uv_vertex, chart, tolerance, units) -> tuple:
     return V, F, uv, Fuv, uv_vertex, chart, tol
 
 
+def _bisect(uv: np.ndarray, Fr: np.ndarray) -> list[np.ndarray]:
+    """The triangles Fr (mr,3) (rows of uv) in two halves at the median of their centroids along the longer side
+    of their uv box, each half in its connected pieces: a list of index arrays into Fr."""
+    c = uv[Fr].mean(axis=1)
+    axis = int(np.argmax(np.ptp(c, axis=0)))
+    side = c[:, axis] > np.median(c[:, axis])
+    if side.all() or not side.any():
+        side = np.arange(len(Fr)) >= len(Fr) // 2
+    a, b, _ = _adjacent(Fr)
+    same = side[a] == side[b]
+    lab = _components(len(Fr), a[same], b[same])
+    return [np.flatnonzero(lab == k) for k in range(lab.max() + 1)]
+
+
 def _region_face(k: int, c: int, Fr: np.ndarray, uv: np.ndarray, X_row: np.ndarray, tol: float
                  ) -> tuple[object, dict, np.ndarray]:
     """Fit one STEP face (the triangles Fr (mr,3), rows of uv, of chart c; face number k) and trim it by their
     boundary loops: (the face, its report entry, its vertex deviations)."""
     rows = np.unique(Fr)
-    data = _Samples(uv, X_row, Fr, _FIT_POINTS)
-    check = _Samples(uv, X_row, Fr, _CHECK_POINTS)
-    fit = _fit_surface(uv[rows], X_row[rows], data, check, tol)
-    face = _piece_face(_occ_surface(fit), uv, Fr, tol)
+    loops = boundary_loops(Fr)
+    on_border = np.zeros(len(uv), dtype=bool)
+    for lp in loops:
+        on_border[lp] = True
+    # the edge opposite each corner (rows of uv) is a border edge when no other triangle has it
+    opposite = np.stack([Fr[:, [1, 2]], Fr[:, [2, 0]], Fr[:, [0, 1]]], axis=1)  # (m,3,2)
+    key = np.sort(opposite, axis=2).reshape(-1, 2)
+    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    border = (counts[inv.reshape(-1)] == 1).reshape(-1, 3)
+    data = _Samples(uv, X_row, Fr, _FIT_POINTS, border)
+    intervals = int(np.clip(np.ceil(0.5 * np.sqrt(len(Fr))), 2, _START_INTERVALS))  # not finer than the triangles
+
+    def checks(bu, bv):
+        return _check_samples(uv, X_row, Fr, border, bu, bv)
+
+    fit = _fit_surface(uv[rows], X_row[rows], on_border[rows], data, checks, tol, intervals)
+    check = fit["check"]
+    face = _piece_face(_occ_surface(fit), uv, loops, tol)
     dev = fit["dev"]
     # where: the worst of the vertices, the fitted samples and the checked ones
     where = [(dev, X_row[rows]), (fit["dev_fit"], data.X), (fit["dev_check"], check.X)]
@@ -635,14 +781,13 @@ def _region_face(k: int, c: int, Fr: np.ndarray, uv: np.ndarray, X_row: np.ndarr
         "knot_rounds": int(fit["rounds"]),
         "max_deviation": max(worst_v, worst_s), "max_vertex_deviation": worst_v, "max_surface_deviation": worst_s,
         "deviation_over_tolerance": max(worst_v, worst_s) / tol, "worst_at": [float(x) for x in at],
-        "within_tolerance": fit["within"], "valid": _valid(face),
+        "max_border_deviation": fit["dev_border"], "within_tolerance": fit["within"], "valid": _valid(face),
     }
     return face, report, dev
 
 
-def _piece_face(surface, uv: np.ndarray, Fp: np.ndarray, tol: float):
-    """The face of ``surface`` trimmed by the boundary loops of one connected piece Fp (p,3) of a chart."""
-    loops = boundary_loops(Fp)
+def _piece_face(surface, uv: np.ndarray, loops: list[np.ndarray], tol: float):
+    """The face of ``surface`` trimmed by the boundary loops (rows of uv) of one connected piece of a chart."""
     areas = np.array([polygon_area(uv[lp]) for lp in loops])
     outer = int(np.argmax(np.abs(areas)))
     reverse = areas[outer] < 0  # a mirrored map: uv loops run clockwise, the surface normal is flipped
@@ -653,8 +798,9 @@ def _piece_face(surface, uv: np.ndarray, Fp: np.ndarray, tol: float):
 
 
 def _assemble(faces: list, tol: float, warnings: list[str]) -> tuple:
-    """The faces sewn (tolerance 2 tol: each side of a shared border is within the tolerance of the mesh's) when
-    that keeps them valid, else a compound of them (one face: itself). A single face is sewn too: a chart with a
+    """The faces sewn (tolerance ``tol``: twice the largest deviation of a face's border from the mesh, so that two
+    faces sharing a border are sewn there; within 2 fit tolerances, each side being within it) when that keeps
+    them valid, else a compound of them (one face: itself). A single face is sewn too: a chart with a
     seam inside one face meets itself there. Returns (shape, sewn); appends to ``warnings`` when sewing was
     refused."""
     from OCP.BRep import BRep_Builder
@@ -666,7 +812,7 @@ def _assemble(faces: list, tol: float, warnings: list[str]) -> tuple:
     bld.MakeCompound(comp)
     for f in faces:
         bld.Add(comp, f)
-    sew = BRepBuilderAPI_Sewing(2.0 * tol)
+    sew = BRepBuilderAPI_Sewing(tol)
     for f in faces:
         sew.Add(f)
     sew.Perform()
@@ -817,8 +963,37 @@ def _edge_distances(shape, pts: list, rest: np.ndarray, dist: np.ndarray) -> Non
         dist[i] = ds.Value()
 
 
+def tessellation(shape, deflection: float) -> list[tuple]:
+    """Per face of ``shape``: (the face, nodes (p,3), triangles (t,3)) of OpenCascade's tessellation
+    (``BRepMesh_IncrementalMesh``, linear ``deflection``, angular 0.5 rad, sequential); a face BRepMesh could not
+    mesh gives empty arrays. The nodes lie on the faces' surfaces, inside their trims."""
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopLoc import TopLoc_Location
+    from OCP.TopoDS import TopoDS
+
+    BRepMesh_IncrementalMesh(shape, deflection, False, 0.5, False)
+    out = []
+    ex = TopExp_Explorer(shape, TopAbs_FACE)
+    while ex.More():
+        face = TopoDS.Face(ex.Current())
+        loc = TopLoc_Location()
+        tri = BRep_Tool.Triangulation_s(face, loc)
+        P, T = np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+        if tri is not None and tri.NbNodes():
+            trsf = loc.Transformation()
+            P = np.array([tri.Node(i).Transformed(trsf).Coord() for i in range(1, tri.NbNodes() + 1)])
+            T = np.array([tri.Triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64) - 1
+        out.append((face, P, T))
+        ex.Next()
+    return out
+
+
 def inspect_step(path: str | os.PathLike, points: np.ndarray | None = None, units: str | None = None,
-                 max_points: int | None = None, seed: int = 0) -> dict:
+                 max_points: int | None = None, seed: int = 0, faces: np.ndarray | None = None,
+                 deflection: float | None = None) -> dict:
     """Read a STEP file back and measure it: for tests and reports.
 
     Parameters
@@ -826,24 +1001,36 @@ def inspect_step(path: str | os.PathLike, points: np.ndarray | None = None, unit
     points : (p,3) float64 or None; their distances to the shape's faces are measured (see :func:`_distances`).
     units : unit to read the coordinates in (None = the file's own).
     max_points : measure at most this many points (a seeded random sample), or None for all.
+    faces : (m,3) int64 or None: with ``points`` the mesh's vertices (all of them), the mesh's triangles; the other
+        way is measured too: the shape is tessellated (:func:`tessellation`, linear ``deflection``, default 1/1000
+        of the points' bounding-box diagonal) and every node's distance to the mesh taken.
 
     Returns
     -------
-    dict: ``valid`` (BRepCheck_Analyzer), ``faces``, ``area``, ``file_units`` and, with
-    points, ``max_distance``, ``rms_distance``, ``points_measured``.
+    dict: ``valid`` (BRepCheck_Analyzer), ``faces``, ``area``, ``file_units``, ``shells``, ``free_edges`` and, with
+    points, ``max_distance``, ``rms_distance``, ``points_measured``; with faces, ``surface_max_distance``,
+    ``surface_p99_distance`` (nodes to the mesh), ``surface_nodes``, ``invalid_faces`` (BRepCheck per face) and
+    ``untessellated_faces``.
     """
-    from OCP.TopAbs import TopAbs_FACE
-    from OCP.TopExp import TopExp_Explorer
+    import igl
+    from OCP.BRepCheck import BRepCheck_Analyzer
 
     shape, file_unit = read_step(path, units)
-    n_faces = 0
-    ex = TopExp_Explorer(shape, TopAbs_FACE)
-    while ex.More():
-        n_faces += 1
-        ex.Next()
-    out = {"valid": _valid(shape), "faces": n_faces, "area": _area(shape), "file_units": file_unit}
-    if points is not None:
-        P = np.asarray(points, dtype=np.float64)
+    shells, free = _topology(shape)
+    out = {"valid": _valid(shape), "faces": 0, "area": _area(shape), "file_units": file_unit, "shells": shells,
+           "free_edges": free}
+    V = None if points is None else np.asarray(points, dtype=np.float64)
+    if faces is not None:
+        diag = float(np.linalg.norm(V.max(0) - V.min(0)))
+        tess = tessellation(shape, 1e-3 * diag if deflection is None else deflection)
+        nodes = np.vstack([P for _, P, _ in tess])
+        d = np.sqrt(igl.point_mesh_squared_distance(nodes, V, np.asarray(faces, dtype=np.int64))[0])
+        out.update(surface_max_distance=float(d.max()), surface_p99_distance=float(np.percentile(d, 99)),
+                   surface_nodes=int(len(nodes)), untessellated_faces=sum(not len(P) for _, P, _ in tess),
+                   invalid_faces=sum(not BRepCheck_Analyzer(f).IsValid() for f, _, _ in tess))
+    out["faces"] = _count(shape, "FACE")
+    if V is not None:
+        P = V
         if max_points is not None and len(P) > max_points:
             P = P[np.sort(np.random.default_rng(seed).choice(len(P), max_points, replace=False))]
         dist = _distances(shape, P)
