@@ -192,12 +192,14 @@ def main(argv: list[str]) -> None:
             m = measure(out, V, F, rep["tolerance"])
         print(f"| {name} | {len(F)} | {'yes' if _closed(F) else 'no'} | {len(rep['charts'])} | {m['faces']} "
               f"| {m['s2m_max']:.2f} | {m['s2m_p99']:.2f} | {m['m2s_max']:.2f} | {m['m2s_p99']:.2f} | {m['area']:+.2f} "
-              f"| {'yes' if m['valid'] else 'NO'} | {m['invalid_faces']} | {m['untessellated']} | {m['shells']} | {m['free_edges']} "
+              f"| {'yes' if m['valid'] else 'NO'} | {m['invalid_faces']} | {m['untessellated']} | {m['shells']} "
+              f"| {m['free_edges']} "
               f"| {len(rep['warnings'])} | {sec:.1f} |", flush=True)
         if "max_surface_deviation" in rep:  # what write_step itself measured and reports
             print(f"  <!-- {name}: reported max {rep['max_deviation'] / rep['tolerance']:.2f} tol (vertices "
                   f"{rep['max_vertex_deviation'] / rep['tolerance']:.2f}, surface "
-                  f"{rep['max_surface_deviation'] / rep['tolerance']:.2f}), {rep.get('creases')} crease edges, {rep.get('tolerance_splits')} splits for the tolerance -->",
+                  f"{rep['max_surface_deviation'] / rep['tolerance']:.2f}), {rep.get('creases')} crease edges, "
+                  f"{rep.get('tolerance_splits')} splits for the tolerance -->",
                   file=sys.stderr)
         for w in rep["warnings"]:
             print(f"  <!-- {name}: {w} -->", file=sys.stderr)
