@@ -1,35 +1,39 @@
-"""STEP output: each chart of a map as a trimmed B-spline surface (OpenCascade 8, through the ``OCP`` bindings of
-the ``cadquery-ocp-novtk`` wheel; ``cadquery-ocp`` provides the same module with VTK besides).
+"""STEP output: a map's charts as trimmed B-spline faces (OpenCascade 8, through the ``OCP`` bindings of the
+``cadquery-ocp-novtk`` wheel; ``cadquery-ocp`` provides the same module with VTK besides).
 
-Method (measured on the developable ``cylinder_with_holes`` and on camelhead, see :func:`write_step`):
+The contract (issue 45): every face's surface within the fit tolerance of the mesh both ways — the mesh vertices
+to the surface and the surface to the mesh, everywhere inside the trim — or a warning saying which face, where and
+by how much, and the achieved deviation of every face in the report. Measured by ``bench/bench_step.py`` (the file
+read back, tessellated and compared with the mesh both ways).
 
-1. **Fit.** For each chart, a clamped bicubic B-spline surface ``S(u,v)`` over the chart's padded parameter
-   rectangle is fitted by penalized least squares to the 3D positions of the mesh vertices at their uv and of the
-   face centroids at theirs (barycentric interpolation of the map, which is bijective), plus a small
-   second-difference (thin-plate-like) penalty on the control net. The penalty makes the system definite where
-   there is no data (holes, bays, the rectangle's corners outside the chart): the surface is extended there
-   smoothly (near-linearly) instead of being sampled, so no explicit extension of the map is needed. The knot
-   grid starts at ~32 intervals on the longer side and is refined where needed: every knot interval (in u and in
-   v) that contains a vertex deviating by more than 0.9 tolerance is halved, until the max deviation at the mesh
-   vertices, ``|S(uv_i) - V_i|``, is within the tolerance.
-   Why this and not a sampled grid + ``GeomAPI_PointsToBSplineSurface``: the acceptance measure is the deviation
-   at the vertices, and fitting them directly meets it with the fewest control points (a grid sample of the
-   piecewise-linear map puts its points between the vertices, not on them); the centroids keep the surface on the
-   mesh inside every triangle. On camelhead (tolerance 0.1% of the diagonal) a uniform knot grid of 195x185
-   control points still deviates by 2.0 tolerances at the vertices; the locally refined one meets it with
-   195x180. The penalty weight (1e-2 of the data term's mean diagonal) was measured: at 1e-4 the camelhead face
-   is 1.5% larger than the mesh (the surface ripples between the data where the knots are finer than the
-   triangles), at 1e-2 0.09%; at 1e-1 the developable part needs 81x80 instead of 43x40 control points.
-2. **Trim.** The chart's boundary loops in uv (outer counter-clockwise, holes clockwise, from the boundary
-   half-edges of its faces) become one straight 2D segment per boundary edge on the surface
-   (``BRepBuilderAPI_MakeEdge(Geom2d segment, surface, v1, v2)``, sharing the loop's vertices), wires, a face
-   (``BRepBuilderAPI_MakeFace`` + ``Add`` per hole), 3D curves by ``BRepLib.BuildCurves3d_s`` and
-   ``ShapeFix_Face``. A chart made of several connected pieces gives one face per piece.
-3. **Assemble and write.** One face: written as it is. Several faces: sewn with ``BRepBuilderAPI_Sewing``
-   (tolerance: twice the fit tolerance) where they share boundaries, kept only when ``BRepCheck_Analyzer`` still
-   calls the result valid (else a compound of the faces). ``STEPControl_Writer`` writes to a temporary file beside
-   the output, renamed over it on success. The coordinates are written unchanged and the file declares ``units``.
-   The header's time stamp is fixed, so the same input gives the same file.
+1. **Faces.** Each chart's triangles, connected through shared uv edges, cut along its creases (:func:`_creases`:
+   dihedral angle >= 60°, or >= 20° where the triangles beside the edge are too large for a smooth surface to turn
+   within the tolerance); pieces under 16 triangles join a neighbour. Each piece is one STEP face.
+2. **Fit.** Per face, a clamped bicubic B-spline surface ``S(u,v)`` over the face's padded uv rectangle, fitted by
+   penalized least squares to the mesh at its vertices, edge midpoints and centroids (the map is piecewise linear:
+   the mesh's point at any uv is the barycentric one), plus a small second-difference penalty on the control net
+   (it extends the surface smoothly where there is no data). The knot grid starts at min(32, √triangles / 2)
+   intervals on the longer side; each round, knot intervals holding a data point off by more than 0.9 tolerance
+   are halved (never below 1/8 of the triangles); when the data are met, the surface is checked between them, at
+   a lattice of points in every triangle as dense as the knots (:func:`_check_samples`), and the triangles where a
+   check point is off join the data with all their check points. The border's points are held to 0.25 tolerance
+   (weight 10), so that neighbouring faces meet within half the tolerance. The penalty weight (1e-2 of the data
+   term's mean diagonal) was measured: at 1e-4 camelhead's face was 1.5% larger than the mesh (ripples between
+   the data), at 1e-1 the developable part needed twice the control points.
+3. **Where the fit misses.** A face still off the tolerance is split (:func:`_split`): its failing triangles and
+   two rings around them carved out as faces of their own, then halves, up to 12 deep; a single triangle is a
+   plane, which the fit meets exactly. What still misses is written as it is, with a :class:`StepToleranceWarning`.
+4. **Trim.** The face's boundary loops in uv (outer counter-clockwise, holes clockwise) become one straight 2D
+   segment per boundary edge on the surface (``BRepBuilderAPI_MakeEdge(Geom2d segment, surface, v1, v2)``), wires,
+   a face (``BRepBuilderAPI_MakeFace`` + ``Add`` per hole), 3D curves by ``BRepLib.BuildCurves3d_s`` and
+   ``ShapeFix_Face``.
+5. **Assemble and write.** The faces sewn (``BRepBuilderAPI_Sewing``, tolerance twice the largest border
+   deviation: a closed mesh gives one closed shell), kept when ``BRepCheck_Analyzer`` still calls the result valid
+   (else a compound of the faces, with a warning). The file declares the sewing tolerance as its uncertainty (with
+   OpenCascade's default, 1e-7, its reader filled the sewn gaps with tiny edges and could not mesh the faces).
+   ``STEPControl_Writer`` writes to a temporary file beside the output, renamed over it on success. The coordinates
+   are written unchanged and the file declares ``units``; the header's time stamp is fixed (same input, same
+   file).
 """
 
 from __future__ import annotations
