@@ -1,6 +1,7 @@
 """Command line: round trip, subcommands, and one test per bad-input case (exit 2, one line, no file)."""
 
 import json
+import re
 import subprocess
 import sys
 
@@ -8,7 +9,8 @@ import numpy as np
 import pytest
 
 from heatparam import datasets, formats
-from heatparam.cli import main
+from heatparam.cli import DEMO_DESCRIPTION, build_parser, main
+from heatparam.options import GROUPS, cli_options
 
 from conftest import shared_mesh
 
@@ -72,6 +74,80 @@ def test_demo(tmp_path):
     assert main(["demo", "-o", str(tmp_path / "demo"), "--quiet"]) == 0
     for name in ("demo.obj", "demo-report.json", "demo-preview.png"):
         assert (tmp_path / "demo" / name).stat().st_size > 0
+    # demo --help says what the run does: the heat stage runs, and the conformal layout wins the start
+    report = json.loads((tmp_path / "demo" / "demo-report.json").read_text())
+    start = report["method"]["refine"]["start"]
+    assert report["method"]["geodesics"] in ("landmarks", "all-pairs") and start["layout"] == "conformal"
+    assert "the heat geodesics and MDS run" in DEMO_DESCRIPTION and "the conformal one wins" in DEMO_DESCRIPTION
+
+
+def _help(command: str, columns: int, monkeypatch) -> str:
+    monkeypatch.setenv("COLUMNS", str(columns))  # argparse's width: shutil.get_terminal_size reads it first
+    return build_parser()._subparsers._group_actions[0].choices[command].format_help()
+
+
+@pytest.mark.parametrize("command", ["unwrap", "batch"])
+@pytest.mark.parametrize("columns", [80, 100])
+def test_help_is_short_grouped_and_has_examples(command, columns, monkeypatch):
+    text = _help(command, columns, monkeypatch)
+    assert len(text.splitlines()) <= 80, len(text.splitlines())
+    assert "§" not in text and not re.search(r"\bstop \d", text, re.IGNORECASE)
+    assert "\nexamples:\n  heatparam " + command in text and "docs/options.md" in text
+    for title in GROUPS.values():
+        assert f"\n{title}:\n" in text
+    assert "\noptions:\n" not in text  # every flag sits in a group, --help in the last
+
+
+def test_unwrap_help_one_line_per_option(monkeypatch):
+    """At 100 columns every option's flag, its one-line help and its default share one line."""
+    lines = _help("unwrap", 100, monkeypatch).splitlines()
+    for o in cli_options():
+        line = next(x for x in lines if x.strip().startswith(o.flag + " "))
+        assert line.endswith(f"{o.short} (default: {o.default})"), line
+    for flag in ("-o OUT, --output OUT", "--report", "--preview", "--units", "--sheet", "--strain-map",
+                 "--fit-tolerance", "--quiet", "-h, --help"):
+        line = next(x for x in lines if x.strip().startswith(flag))
+        assert len(line.split("  ", 2)[-1].strip()) > 10, line  # the help beside the flag, not below
+
+
+def test_unwrap_groups_in_order():
+    unwrap = build_parser()._subparsers._group_actions[0].choices["unwrap"]
+    titles = [g.title for g in unwrap._action_groups if g._group_actions]
+    assert titles == ["positional arguments", "outputs", *GROUPS.values()]
+    run = next(g for g in unwrap._action_groups if g.title == GROUPS["run"])
+    assert [a.option_strings[-1] for a in run._group_actions] == ["--solver", "--seed", "--quiet", "--help"]
+
+
+def test_top_level_help_names_what_unwrap_writes(monkeypatch):
+    from heatparam.formats.exporters import map_formats
+
+    monkeypatch.setenv("COLUMNS", "100")
+    text = build_parser().format_help()
+    line = next(x for x in text.splitlines() if x.strip().startswith("unwrap"))
+    assert all(f.upper() in line for f in map_formats()) and "OBJ with UVs" not in line
+    unwrap = _help("unwrap", 100, monkeypatch)
+    assert "atlas" in unwrap.split("positional arguments")[0]  # the description: not only disks
+
+
+@pytest.mark.parametrize("argv, flag", [(["--max-distortion", "0.5"], "--max-distortion"),
+                                        (["--landmarks", "2"], "--landmarks")])
+def test_cross_checked_values_are_refused_by_their_flag(tmp_path, patch_off, capsys, argv, flag):
+    """Values the table's range allows but the validation's cross-checks refuse (cmd_unwrap's make_options) are
+    named by their flag, as the parse-time refusals are."""
+    src, _ = patch_off
+    out = tmp_path / "o.obj"
+    assert main(["unwrap", str(src), "-o", str(out), "--quiet", *argv]) == 2
+    err = capsys.readouterr().err
+    api = flag.removeprefix("--").replace("-", "_")
+    assert err.startswith(f"heatparam: error: {flag} must be") and api not in err.replace(flag, "")
+    assert err.count("\n") == 1 and not out.exists()
+
+
+def test_out_of_range_value_named_once_by_its_flag(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        main(["unwrap", "in.obj", "-o", str(tmp_path / "o.obj"), "--max-distortion", "200"])
+    err = capsys.readouterr().err
+    assert "argument --max-distortion: must be between 0 and 100; got 200 " in err and "max_distortion" not in err
 
 
 def test_console_script_bad_input_no_traceback(tmp_path):

@@ -1,18 +1,19 @@
-"""``heatparam.options``: one table drives the API's Options, their validation, the CLI and the README."""
+"""``heatparam.options``: one table drives the API's Options, their validation, the CLI (its ``--help``) and
+docs/options.md."""
 
 from __future__ import annotations
 
 import math
+import re
 import subprocess
 import sys
 from dataclasses import fields
-from pathlib import Path
 
 import pytest
 
 from heatparam.cli import build_parser
 from heatparam.errors import HeatparamError
-from heatparam.options import OPTIONS, Options, cli_options, make_options, markdown_table, to_cli_terms
+from heatparam.options import GROUPS, OPTIONS, Options, cli_options, make_options, to_cli_terms
 
 
 def test_options_fields_are_the_table():
@@ -68,15 +69,53 @@ def test_cli_refuses_out_of_range_values(argv, tmp_path, capsys):
     assert "Traceback" not in err and argv[0] in err
 
 
-def test_readme_option_table_is_the_generated_one():
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    assert markdown_table() in readme
-
-
 def test_api_terms_become_flags():
     assert to_cli_terms("use geodesics='landmarks' (or 'auto')") == "use --geodesics landmarks (or 'auto')"
     assert to_cli_terms("try fill='none', then refine=none;") == "try --fill none, then --refine none;"
     assert to_cli_terms("mass='lumped' stays") == "mass='lumped' stays"  # no flag: kept in API terms
+
+
+@pytest.mark.parametrize("message, expect", [
+    # the validation's refusals name the option as their subject, without a value
+    ("max_distortion must be 0 (automatic) or more than 1 (1 = isometry); got 0.5",
+     "--max-distortion must be 0 (automatic) or more than 1 (1 = isometry); got 0.5"),
+    ("landmarks must be 0 (automatic) or at least 3; got 2", "--landmarks must be 0 (automatic) or at least 3; got 2"),
+    # an underscored name is an identifier wherever it stands
+    ("the fill failed — try another fill_depth or fill='none'",
+     "the fill failed — try another --fill-depth or --fill none"),
+    ("(mds_start='always' computes them)", "(--mds-start always computes them)"),
+    # English words, paths, longer names and API-only options stay as they are
+    ("the fill must close the holes", "the fill must close the holes"),
+    ("refine_iters must be an integer; got 1.5", "refine_iters must be an integer; got 1.5"),
+    ("/tmp/max_distortion/x.obj: no triangles", "/tmp/max_distortion/x.obj: no triangles"),
+    ("fill_depth.obj: no triangles", "fill_depth.obj: no triangles"),
+    ("time_step_value is 0.5", "time_step_value is 0.5"),
+])
+def test_bare_option_names_become_flags(message, expect):
+    assert to_cli_terms(message) == expect
+
+
+def test_every_refusal_of_the_validation_reads_in_flags():
+    """Each option the command line offers, refused by the API's validation, is named by its flag once turned
+    into command-line terms (the path ``cli._run`` takes)."""
+    bad = {"choice": "nonsense", "int": -7, "float": -7.0, "time": -7.0, "bool": "yes"}
+    for o in cli_options():
+        with pytest.raises(HeatparamError) as e:
+            make_options(**{o.name: bad[o.kind]})
+        text = to_cli_terms(str(e.value))
+        assert text.startswith(o.flag) and o.name not in text.replace(o.flag, ""), text
+    with pytest.raises(HeatparamError) as e:
+        make_options(max_distortion=0.5)
+    assert to_cli_terms(str(e.value)).startswith("--max-distortion must be")
+
+
+def test_every_option_has_a_short_help_and_a_group():
+    """--help shows ``short``: one line, no section signs or stop numbers (those belong in docs/options.md)."""
+    for o in OPTIONS:
+        assert o.group in GROUPS, o.name
+        assert 0 < len(o.short) <= 44 and "\n" not in o.short, o.name
+        assert "§" not in o.short and not re.search(r"\bstop \d", o.short, re.IGNORECASE), o.name
+        assert o.help and len(o.help) > len(o.short), o.name  # the long explanation stays in the table
 
 
 def test_help_imports_no_numerics():

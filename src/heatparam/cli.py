@@ -10,11 +10,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import sys
+import textwrap
 from pathlib import Path
 
 from heatparam.errors import HeatparamError
-from heatparam.options import Option, check_value, cli_options, help_text, make_options, to_cli_terms
+from heatparam.options import GROUPS, Option, check_value, cli_options, make_options, to_cli_terms
 from heatparam.version import __version__
 
 EXIT_BAD_INPUT = 2
@@ -42,8 +44,9 @@ def _parse_value(opt: Option):
                 raise argparse.ArgumentTypeError(f"expected {expect}, got {text!r}") from None
         try:
             return check_value(opt, value)
-        except HeatparamError as exc:
-            raise argparse.ArgumentTypeError(str(exc).split("; got")[0]) from None
+        except HeatparamError as exc:  # argparse names the flag ("argument --x: ..."): not the API name too
+            rule = str(exc).removeprefix(f"{opt.name} ").split("; got")[0]
+            raise argparse.ArgumentTypeError(f"{rule}; got {text}") from None
 
     return parse
 
@@ -64,40 +67,96 @@ def _positive_int(text: str) -> int:
     return int(_positive(text, integer=True))
 
 
+#: Where the options' one-line help starts (columns): at 100 columns the choice flags fit beside their help; on a
+#: narrower terminal the help starts earlier, so that it keeps its one line and the long flags get a line of their own.
+WIDE_HELP_COLUMN, NARROW_HELP_COLUMN = 42, 26
+
+UNWRAP_DESCRIPTION = (
+    "Flatten a mesh into the plane at true scale (UVs in model units). A disk, with or without holes, becomes one "
+    "bijective map; any other mesh (closed, with handles, several parts, non-manifold) an atlas of charts, each "
+    "within --max-distortion. Writes each -o (its extension picks the format), --report and --preview.")
+UNWRAP_EXAMPLES = """examples:
+  heatparam unwrap part.obj -o part_uv.obj -o part.dxf --report part.json
+  heatparam unwrap scan.ply -o scan.glb --geodesics landmarks --landmarks 300
+  heatparam unwrap cow.off -o cow.svg --strain-map        # closed: an atlas
+  heatparam unwrap cow.off -o cow.obj --max-distortion 1.03 --pack texture
+  heatparam unwrap part.stl -o part.step --units in --fit-tolerance 0.01
+
+Each option at length: docs/options.md; the output formats: docs/formats.md."""
+BATCH_EXAMPLES = """examples:
+  heatparam batch scans/ -o out --format obj,dxf,svg --workers 8
+  heatparam batch 'parts/*.stl' -o out --scheduler tcp://host:8786
+
+Rerun the same command to resume (--force redoes all). Each pipeline option at length: docs/options.md."""
+DEMO_DESCRIPTION = (
+    "Unwrap a generated scan-like part (a noisy cylinder patch with two holes, in mm) and write OBJ, DXF, SVG "
+    "(strain map), STEP, the report and the preview. The conformal layout is not near-isometric there, so the fill, "
+    "the heat geodesics and MDS run, and the MDS layout competes with the conformal one for the refinement's start: "
+    "the lower-energy one starts (on this part the conformal one wins). stderr says which stages ran and which "
+    "start won.")
+
+
+class _Help(argparse.RawDescriptionHelpFormatter):
+    """--help with one line per option: the description filled to the terminal's width, a paragraph with indented
+    lines (the examples) kept as written."""
+
+    def __init__(self, prog: str):
+        width = shutil.get_terminal_size().columns - 2
+        super().__init__(prog, max_help_position=min(WIDE_HELP_COLUMN, max(NARROW_HELP_COLUMN, width - 56)))
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        raw = super()._fill_text
+        return "\n\n".join(raw(p, width, indent) if "\n  " in p else
+                           textwrap.fill(p, width, initial_indent=indent, subsequent_indent=indent,
+                                         break_on_hyphens=False)
+                           for p in text.split("\n\n"))
+
+
 def _add_batch_arguments(p: argparse.ArgumentParser) -> None:
-    """The arguments of ``heatparam batch`` other than the pipeline options (the option table's)."""
+    """The arguments of ``heatparam batch``: its own in their groups, then the option table's (``--help`` order)."""
     from heatparam.batching import MESH_SUFFIXES
     from heatparam.formats.exporters import batch_formats
 
     p.add_argument("inputs", nargs="+", metavar="INPUT", help="mesh files, folders (searched recursively for "
                    f"{' '.join(MESH_SUFFIXES)}) or globs")
-    p.add_argument("-o", "--output-dir", required=True, metavar="OUTDIR",
-                   help="output folder: OUTDIR/<relative path>/<stem>.obj and .json, summary.csv, summary.json, "
-                        "index.html")
-    p.add_argument("--format", default="obj", metavar="FMT[,FMT...]",
-                   help=f"output formats, of {', '.join(batch_formats())} (the json report is always written; default: "
-                        "%(default)s)")
-    p.add_argument("--workers", type=_positive_int, metavar="N",
-                   help="worker processes of the local Dask cluster (default: one per core)")
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="run on this Dask scheduler (tcp://host:8786, or a scheduler JSON file) instead of a local "
-                        "cluster")
-    p.add_argument("--force", action="store_true", help="redo inputs whose outputs are up to date")
-    p.add_argument("--task-timeout", type=_positive, metavar="S",
-                   help="seconds one mesh may take; past it the mesh is recorded as failed (default: no limit)")
-    p.add_argument("--task-memory", metavar="SIZE",
-                   help="memory one mesh's process may hold, e.g. 4GB (default: the Dask worker's memory limit)")
-    p.add_argument("--preview", action="store_true", help="also write <stem>.png previews (shown in index.html)")
+    g = p.add_argument_group("outputs")
+    g.add_argument("-o", "--output-dir", required=True, metavar="OUTDIR",
+                   help="folder: <path>/<stem>.*, summary.csv/.json, index.html")
+    g.add_argument("--format", default="obj", metavar="FMT[,FMT...]",
+                   help=f"formats: {','.join(batch_formats())} (default: %(default)s)")
+    g.add_argument("--preview", action="store_true", help="also write <stem>.png previews (in index.html)")
+    g.add_argument("--force", action="store_true", help="redo inputs whose outputs are up to date")
+    g = p.add_argument_group("cluster")
+    g.add_argument("--workers", type=_positive_int, metavar="N",
+                   help="local Dask worker processes (default: one per core)")
+    g.add_argument("--scheduler", metavar="ADDRESS",
+                   help="Dask scheduler (tcp://host:8786 or its JSON file)")
+    g.add_argument("--task-timeout", type=_positive, metavar="S",
+                   help="seconds one mesh may take, then failed (default: no limit)")
+    g.add_argument("--task-memory", metavar="SIZE",
+                   help="memory of one mesh's process, e.g. 4GB (default: the worker's)")
+    _add_option_groups(p)
 
 
-def _add_option(p: argparse.ArgumentParser, opt: Option) -> None:
-    kw: dict = {"default": opt.default, "help": help_text(opt).replace("%", "%%") + " (default: %(default)s)"}
+def _add_option(p: argparse.ArgumentParser | argparse._ArgumentGroup, opt: Option) -> None:
+    kw: dict = {"default": opt.default, "help": opt.short.replace("%", "%%") + " (default: %(default)s)"}
     if opt.kind == "choice":
         kw["choices"] = opt.choices
     else:
         kw["type"] = _parse_value(opt)
         kw["metavar"] = opt.metavar
     p.add_argument(opt.flag, dest=opt.name, **kw)
+
+
+def _add_option_groups(p: argparse.ArgumentParser) -> None:
+    """The table's options (``options.cli_options``) as flags of ``p`` in their groups (``options.GROUPS``), with
+    ``--quiet`` and ``--help`` in the last."""
+    groups = {key: p.add_argument_group(title) for key, title in GROUPS.items()}
+    for opt in cli_options():
+        _add_option(groups[opt.group], opt)
+    run = groups[next(reversed(GROUPS))]
+    run.add_argument("--quiet", action="store_true", help="no progress output")
+    run.add_argument("-h", "--help", action="help", help="show this help and exit")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -123,29 +182,25 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_unwrap(sub) -> None:
-    u = sub.add_parser("unwrap", help="flatten a mesh and write an OBJ with UVs",
-                       description="Flatten a disk-like mesh (with holes) into the plane at true scale.")
-    u.add_argument("input", help="mesh file (.obj .off .ply .stl .glb)")
-    u.add_argument("-o", "--output", required=True, action="append", metavar="OUT",
-                   help="output file, may be given several times; the format follows the extension: .obj (v in "
-                        "input order; one vt per vertex, or per seam side when the map has seams), .ply and .glb "
-                        "(the map as texture coordinates; GLB with a checker texture), .dxf and .svg (flat "
-                        "pattern: outline, holes, seams, annotations), .step/.stp (trimmed B-spline faces)")
-    u.add_argument("--units", choices=UNITS, default="mm",
-                   help="the model's units, stated in every output (DXF $INSUNITS, SVG physical size, STEP) "
-                        "(default: %(default)s)")
-    u.add_argument("--sheet", metavar="WxH",
-                   help="DXF/SVG: arrange the charts on sheets of this size (model units), as many as needed, "
-                        "framed on layer SHEET; a chart larger than the sheet is refused")
-    u.add_argument("--strain-map", action="store_true",
-                   help="SVG: fill the faces by isometric distortion, with a legend")
-    u.add_argument("--fit-tolerance", type=_positive, metavar="TOL",
-                   help="STEP: largest distance of the B-spline surface from the mesh's vertices (model units; "
-                        "default: 0.1%% of the bounding-box diagonal)")
-    _add_options(u)
-    u.add_argument("--report", metavar="R.json", help="write a JSON report (parameters, timings, metrics)")
-    u.add_argument("--preview", metavar="P.png", help="write a PNG: UV layout coloured by distortion + 3D view")
-    u.add_argument("--quiet", action="store_true", help="no progress output")
+    from heatparam.batching import MESH_SUFFIXES
+    from heatparam.formats.exporters import BY_NAME, map_formats
+
+    u = sub.add_parser("unwrap", help=f"flatten any mesh at true scale ({', '.join(map_formats()).upper()}, report, "
+                       "preview)", description=UNWRAP_DESCRIPTION, epilog=UNWRAP_EXAMPLES, formatter_class=_Help,
+                       usage="%(prog)s input -o OUT [-o OUT ...] [options]", add_help=False)
+    u.add_argument("input", help=f"mesh file ({' '.join(MESH_SUFFIXES)})")
+    g = u.add_argument_group("outputs")
+    g.add_argument("-o", "--output", required=True, action="append", metavar="OUT",
+                   help=f"output, repeatable: {' '.join(BY_NAME[f].suffixes[0] for f in map_formats())}")
+    g.add_argument("--report", metavar="R.json", help="write the JSON report (parameters, timings, metrics)")
+    g.add_argument("--preview", metavar="P.png", help="write a PNG: the layout by distortion + 3D view")
+    g.add_argument("--units", choices=UNITS, default="mm",
+                   help="the model's units, stated in every output (default: %(default)s)")
+    g.add_argument("--sheet", metavar="WxH", help="DXF/SVG: charts on sheets of this size")
+    g.add_argument("--strain-map", action="store_true", help="SVG: faces coloured by distortion, with a legend")
+    g.add_argument("--fit-tolerance", type=_positive, metavar="TOL",
+                   help="STEP: fit tolerance (default: 0.1%% of the diagonal)")
+    _add_option_groups(u)
 
 
 def _add_options(p: argparse.ArgumentParser, only=None) -> None:
@@ -159,10 +214,10 @@ def _add_batch(sub) -> None:
     b = sub.add_parser("batch", help="flatten many meshes (files, folders, globs) on a Dask cluster",
                        description="Run the unwrap pipeline on every mesh found, one task per mesh, on a local Dask "
                                    "cluster (default) or the scheduler at --scheduler; resumable; writes "
-                                   "OUTDIR/summary.csv, summary.json and index.html.")
+                                   "OUTDIR/summary.csv, summary.json and index.html.",
+                       epilog=BATCH_EXAMPLES, formatter_class=_Help, add_help=False,
+                       usage="%(prog)s INPUT [INPUT ...] -o OUTDIR [options]")
     _add_batch_arguments(b)
-    _add_options(b)
-    b.add_argument("--quiet", action="store_true", help="no progress output")
 
 
 def _add_geodesics(sub) -> None:
@@ -185,10 +240,7 @@ def _add_evaluate(sub) -> None:
 
 def _add_demo(sub) -> None:
     m = sub.add_parser("demo", help="run on a built-in generated surface (no download)",
-                       description="Unwrap a generated scan-like part (a noisy cylinder patch with two holes, "
-                                   "in mm) where the heat geodesics and MDS start the refinement, and write "
-                                   "OBJ, DXF, SVG (strain map), STEP, report and preview; stderr says which "
-                                   "stages ran and why.")
+                       description=DEMO_DESCRIPTION)
     m.add_argument("-o", "--output-dir", default="heatparam-demo", help="folder for the outputs "
                    "(created; default: %(default)s)")
     m.add_argument("--quiet", action="store_true", help="no progress output")

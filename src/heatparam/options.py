@@ -1,5 +1,6 @@
 """Every knob of the pipeline, declared once: the :data:`OPTIONS` table drives :class:`Options` (the API), its
-validation, the command line (``cli``) and the option table in the README (:func:`markdown_table`).
+validation, the command line (``cli``: flags, groups and one-line ``--help``) and docs/options.md
+(:func:`options_markdown`: the long explanations).
 
 No numerics are imported here: ``heatparam --help`` reads this table and nothing else.
 
@@ -66,8 +67,9 @@ T_COEF_MAX = 1e4
 
 class Option(NamedTuple):
     """One knob: its name (the Options field), default, kind (``choice``, ``int``, ``float``, ``time``, ``bool``),
-    the allowed values or range, the help text (``{default}`` and the constants above may be quoted), whether the
-    command line offers it (``flag``: the CLI spelling, None = API only) and its metavar."""
+    the allowed values or range, the full explanation (``help``: ``{default}`` and the constants above may be
+    quoted; docs/options.md), whether the command line offers it (``flag``: the CLI spelling, None = API only), its
+    metavar, the one-line ``short`` help that ``--help`` shows, and its ``group`` (a key of :data:`GROUPS`)."""
 
     name: str
     default: Any
@@ -79,6 +81,17 @@ class Option(NamedTuple):
     flag: str | None = None
     metavar: str | None = None
     positive: bool = False  # a number that must be > low (not >=)
+    short: str = ""
+    group: str = ""
+
+
+#: The option groups, in the order ``--help`` and docs/options.md show them: key → title.
+GROUPS = {
+    "heat": "method: heat geodesics and MDS (the paper's stages)",
+    "refine": "method: refinement (the bijective true-scale polish)",
+    "atlas": "atlas: meshes that are not one disk (or --max-distortion given)",
+    "run": "run: solver, seed and display",
+}
 
 
 OPTIONS: tuple[Option, ...] = (
@@ -86,79 +99,93 @@ OPTIONS: tuple[Option, ...] = (
            "mesh (holes, or a concave outline) and uses the biharmonic fill; poisson = the paper's screened Poisson "
            "surface (Kazhdan's PoissonRecon through gpytoolbox), trimmed to M; biharmonic = M plus its holes and "
            "border bays triangulated and lifted by a biharmonic extension (docs/fill.md); none",
-           FILL_MODES, flag="--fill"),
+           FILL_MODES, flag="--fill", short="fill surface over holes and bays", group="heat"),
     Option("fill_depth", 0, "int", "octree depth of the Poisson reconstruction (fill poisson); 0 = automatic from "
-           "the mesh's size and edge length, 6-9", low=0, high=12, flag="--fill-depth", metavar="D"),
+           "the mesh's size and edge length, 6-9", low=0, high=12, flag="--fill-depth", metavar="D",
+           short="Poisson octree depth; 0 = automatic", group="heat"),
     Option("geodesics", "auto", "choice", "all-pairs = the paper (n×n matrix, classical MDS); landmarks = k "
            "farthest-point sources, landmark MDS, O(n·k) memory; auto = all-pairs up to {ALL_PAIRS_MAX} vertices",
-           GEODESIC_MODES, flag="--geodesics"),
+           GEODESIC_MODES, flag="--geodesics", short="n×n distances or k landmarks", group="heat"),
     Option("landmarks", 0, "int", "landmark count for the landmark path (0 = automatic: min(n, 100); quality is "
            "flat from k = 50 to 400 on developable patches, time grows linearly: BENCHMARKS.md)",
-           low=0, high=100_000, flag="--landmarks", metavar="K"),
+           low=0, high=100_000, flag="--landmarks", metavar="K", short="landmark count; 0 = min(n, 100)",
+           group="heat"),
     Option("time_step", "default", "time", "heat time: default t = c·h² (h = mean edge, scale-invariant); paper = "
            "Eq. 7 (longest edge; not scale-invariant); or a positive number", TIME_STEPS, flag="--time-step",
-           metavar="{default,paper}|T"),
+           metavar="{default,paper}|T", short="heat time: c·h², Eq. 7 or a number", group="heat"),
     Option("t_coef", 1.0, "float", "the c in t = c·h² for time_step default", low=0.0, high=T_COEF_MAX,
-           flag="--t-coef", metavar="C", positive=True),
+           flag="--t-coef", metavar="C", positive=True, short="the c in t = c·h²", group="heat"),
     Option("mass", "lumped", "choice", "mass matrix B: lumped (default: the consistent one of Eq. 6 gives heat "
-           "kernels that oscillate for short times) or consistent (Eq. 6)", MASS_KINDS),
+           "kernels that oscillate for short times) or consistent (Eq. 6)", MASS_KINDS,
+           short="mass matrix B: lumped or consistent", group="heat"),
     Option("solver", "auto", "choice", "sparse factorization backend; auto = MKL PARDISO (pypardiso, x86-64) for "
            "the refinement and for large heat systems, CHOLMOD (cholespy) otherwise, SciPy's SuperLU if neither is "
-           "installed (BENCHMARKS.md §2, §4)", BACKENDS, flag="--solver"),
+           "installed (BENCHMARKS.md §2, §4)", BACKENDS, flag="--solver", short="sparse factorization backend",
+           group="run"),
     Option("seed", 0, "int", "seeds every random choice (first landmark, Lanczos start vector): same input and seed, "
-           "same output", low=0, high=2**32 - 1, flag="--seed", metavar="N"),
+           "same output", low=0, high=2**32 - 1, flag="--seed", metavar="N", short="seed of every random choice",
+           group="run"),
     Option("all_pairs_max", ALL_PAIRS_MAX, "int", "largest vertex count for which geodesics auto takes the "
-           "all-pairs path", low=3, high=100_000),
+           "all-pairs path", low=3, high=100_000, short="largest n for all-pairs geodesics", group="heat"),
     Option("stress_sources", 32, "int", "number of sources for the sampled Eq. 1 stress in the report",
-           low=1, high=10_000),
+           low=1, high=10_000, short="sources of the report's sampled stress", group="heat"),
     Option("refine", "sd", "choice", "sd = a bijective start (the lower-energy bijective one of the MDS layout and "
            "the conformal one (spectral, no pins), either with <= 0.1% of its triangles flipped repaired "
            "first; else Tutte) polished by projected-Newton symmetric Dirichlet at true scale inside a "
            "re-triangulated scaffold, so no triangle flips and no boundary crosses another (docs/refine.md); "
            "none = the paper's raw MDS map",
-           REFINE_MODES, flag="--refine"),
-    Option("mds_start", "auto", "choice", "with refine sd: auto skips the fill, the heat geodesics and MDS (a) when "
-           "the conformal layout is already bijective and within {ISOMETRIC_START_EXCESS:.1%} of an isometry in energy "
-           "(developable parts: the same map, faster), (b) on meshes of >= {CONFORMAL_START_MIN_VERTICES} vertices "
-           "whenever the conformal layout is bijective, a few flips repaired (measured: the same map quality in "
-           "less time; BENCHMARKS §13, §18), (d) there, for the seams stage's trial map without seams when it is not "
-           "(MDS folded on every such part measured; §18); the report's stress_rel_rms is then null; never when "
-           "fill, geodesics, landmarks or stress is set explicitly. "
-           "always = compute them as a start candidate anyway (in an atlas: every chart through the pipeline "
-           "instead of the charts' joint polish); never = skip them (the conformal layout or Tutte starts; an "
-           "atlas's charts are polished together from LSCM unless this is always: BENCHMARKS §10)",
-           MDS_START_MODES, flag="--mds-start"),
+           REFINE_MODES, flag="--refine", short="sd = bijective polish; none = raw MDS", group="refine"),
+    Option("mds_start", "auto", "choice", "with refine sd, whether the fill, the heat geodesics and MDS run to offer "
+           "the MDS layout as a start candidate. auto skips them (a) when the conformal layout is bijective and "
+           "within {ISOMETRIC_START_EXCESS:.1%} of an isometry in energy (developable parts: the same map, faster); "
+           "(b) on meshes of >= {CONFORMAL_START_MIN_VERTICES} vertices whenever the conformal layout is bijective, "
+           "a few flips repaired (measured: the same map quality in less time; BENCHMARKS §13, §18); (c) on the "
+           "seams stage's cut-open mesh (MDS folds across the slits: the same map); (d) on a large mesh, for the "
+           "seams stage's trial map without seams when the conformal layout is not bijective (MDS folded on every "
+           "such part measured; §18). Skipped, the report's stress_rel_rms is null. auto never skips them when "
+           "fill, geodesics, landmarks or stress is set explicitly. always = compute them as a start candidate "
+           "anyway (in an atlas: every chart through the pipeline instead of the charts' joint polish); never = "
+           "skip them (the conformal layout or Tutte starts; an atlas's charts are polished together from LSCM "
+           "unless this is always: BENCHMARKS §10)",
+           MDS_START_MODES, flag="--mds-start", short="when MDS competes for the start", group="refine"),
     Option("seams", "auto", "choice", "cut holes open to the border along the shortest surface paths: auto = when "
            "the map without seams is more than {SEAM_TRY_EXCESS:.2%} from an isometry, and on large meshes its "
            "coarse level more than {SEAM_MIN_GAIN:.0%} of its iso mean (else no cut map could gain enough: scan "
            "noise is not the holes' doing), keep the cut one if it is bijective and lowers the mean isometric "
            "distortion by {SEAM_MIN_GAIN:.0%} or more (reported, with a warning); holes = always; none = never, "
            "one uncut piece",
-           SEAM_MODES, flag="--seams"),
+           SEAM_MODES, flag="--seams", short="cut holes open to the border", group="refine"),
     Option("stress", "none", "choice", "smacof = stress majorization (SMACOF, Guttman transform) of the raw stress "
            "of Eq. 1 on the geodesic distances MDS used, applied to the MDS layout before refine (BENCHMARKS.md "
-           "§7); none = the MDS layout as is", STRESS_MODES, flag="--stress"),
+           "§7); none = the MDS layout as is", STRESS_MODES, flag="--stress",
+           short="SMACOF stress majorization after MDS", group="heat"),
     Option("refine_multilevel", MULTILEVEL_MIN_VERTICES, "int", "meshes of at least N vertices are polished "
            "coarse-to-fine (a ~1/8-size coarse mesh first; docs/refine.md); 0 = never", low=0, high=2**40,
-           flag="--refine-multilevel", metavar="N"),
-    Option("refine_iters", 200, "int", "iteration cap of the symmetric Dirichlet polish", low=0, high=100_000),
+           flag="--refine-multilevel", metavar="N", short="coarse-to-fine from N vertices; 0 = off",
+           group="refine"),
+    Option("refine_iters", 200, "int", "iteration cap of the symmetric Dirichlet polish", low=0, high=100_000,
+           short="iteration cap of the polish", group="refine"),
     Option("refine_tol", 1e-6, "float", "the polish stops when an iteration lowers the energy by less than this "
-           "fraction", low=0.0, high=1.0, positive=True),
+           "fraction", low=0.0, high=1.0, positive=True, short="relative energy gain that ends the polish",
+           group="refine"),
     Option("max_distortion", 0.0, "float", "atlas (any mesh that is not a single disk: closed, handles, several "
            "parts, non-manifold scans; docs/atlas.md): the bound on each chart's mean isometric distortion; 0 = "
            "automatic: atlases are segmented to 1.05 and a disk that flattens bijectively stays one piece; a number "
            "> 1 also segments a disk whose map exceeds it", low=0.0, high=100.0, flag="--max-distortion",
-           metavar="X"),
+           metavar="X", short="chart distortion bound; 0 = automatic", group="atlas"),
     Option("max_charts", 0, "int", "atlas: a cap on the charts of each part (merging goes on past the bound while "
-           "the merged charts stay bijective); 0 = no cap", low=0, high=10**6, flag="--max-charts", metavar="N"),
+           "the merged charts stay bijective); 0 = no cap", low=0, high=10**6, flag="--max-charts", metavar="N",
+           short="cap on the charts per part; 0 = none", group="atlas"),
     Option("pack", "scale", "choice", "atlas: scale = charts at true scale in model units, laid side by side without "
            "overlap (patterns); texture = UVs in [0,1]², one common scale, a gutter of --padding pixels at "
-           "--resolution (texture maps)", PACK_MODES, flag="--pack"),
+           "--resolution (texture maps)", PACK_MODES, flag="--pack", short="true scale, or UVs in [0,1]²",
+           group="atlas"),
     Option("padding", 4.0, "float", "atlas, pack texture: gutter between charts in pixels", low=0.0, high=1e4,
-           flag="--padding", metavar="PX"),
+           flag="--padding", metavar="PX", short="gutter between charts, pixels", group="atlas"),
     Option("resolution", 1024, "int", "atlas, pack texture: the texture's size in pixels (for --padding)", low=16,
-           high=2**20, flag="--resolution", metavar="PX"),
-    Option("progress", False, "bool", "show stage messages and progress bars on stderr (the CLI: unless --quiet)"),
+           high=2**20, flag="--resolution", metavar="PX", short="texture size in pixels", group="atlas"),
+    Option("progress", False, "bool", "show stage messages and progress bars on stderr (the CLI: unless --quiet)",
+           short="stage messages and progress bars on stderr", group="run"),
 )
 
 _BY_NAME = {o.name: o for o in OPTIONS}
@@ -253,24 +280,97 @@ def cli_options() -> list[Option]:
 
 
 _API_SPELLING = re.compile(r"\b(" + "|".join(o.name for o in OPTIONS) + r")=(?:'([^']*)'|(\S+?))(?=[\s,;)]|$)")
+#: A bare option name: one with an underscore anywhere but inside a path or a longer name (an identifier, never an
+#: English word: "fill" is both), and any one as the subject a refusal starts with (``landmarks must be ...``, the
+#: validation's wording).
+_API_NAME = re.compile(r"(?<![\w./\\'-])(" + "|".join(o.name for o in OPTIONS if "_" in o.name)
+                       + r")(?![\w/\\=-]|\.\w)|^(" + "|".join(o.name for o in OPTIONS) + r")(?= must\b)")
 
 
 def to_cli_terms(message: str) -> str:
-    """A library message with ``name='value'`` / ``name=value`` spellings of options turned into their flags."""
+    """A library message in command-line terms: ``name='value'`` / ``name=value`` become ``--flag value``, and a
+    bare option name becomes its flag where it is unambiguous (see ``_API_NAME``). Options the command line does
+    not offer keep their API name."""
 
-    def sub(m: re.Match) -> str:
+    def setting(m: re.Match) -> str:
         opt = _BY_NAME[m.group(1)]
         if not opt.flag:
             return m.group(0)
         return f"{opt.flag} {m.group(2) if m.group(2) is not None else m.group(3)}"
 
-    return _API_SPELLING.sub(sub, message)
+    def name(m: re.Match) -> str:
+        return _BY_NAME[m.group(1) or m.group(2)].flag or m.group(0)
+
+    return _API_NAME.sub(name, _API_SPELLING.sub(setting, message))
+
+
+def _spelling(o: Option) -> str:
+    """The flag as the command line spells it, with its choices or metavar."""
+    return f"{o.flag} {{{','.join(o.choices)}}}" if o.kind == "choice" else f"{o.flag} {o.metavar or ''}".rstrip()
+
+
+def _cell(text: str) -> str:
+    """Text inside a markdown table cell: a ``|`` would end the cell."""
+    return text.replace("|", "\\|")
 
 
 def markdown_table() -> str:
-    """The README's option table (command-line options), generated from :data:`OPTIONS`."""
+    """The command-line options in one table (flag, one-line meaning, default), generated from :data:`OPTIONS`:
+    the summary at the top of docs/options.md."""
     rows = ["| option | meaning | default |", "|---|---|---|"]
     for o in cli_options():
-        spell = f"`{o.flag} {{{','.join(o.choices)}}}`" if o.kind == "choice" else f"`{o.flag} {o.metavar or ''}`"
-        rows.append(f"| {spell.replace(' `', '`').replace('|', chr(92) + '|')} | {help_text(o)} | `{o.default}` |")
+        rows.append(f"| [`{_cell(_spelling(o))}`](#{o.name}) | {_cell(o.short)} | `{o.default}` |")
     return "\n".join(rows)
+
+
+def _allowed(o: Option) -> str:
+    """What values ``o`` takes, in words, from its table row."""
+    if o.kind == "choice":
+        return "one of " + ", ".join(f"`{c}`" for c in o.choices)
+    if o.kind == "bool":
+        return "True or False"
+    if o.kind == "time":
+        return " or ".join(f"`{c}`" for c in o.choices) + " or a positive number"
+    what, bound = ("an integer", lambda b: f"{int(b)}") if o.kind == "int" else ("a number", lambda b: f"{b:g}")
+    low = f"more than {bound(o.low)}" if o.positive else f"at least {bound(o.low)}"
+    return f"{what}, {low} and at most {bound(o.high)}"
+
+
+_DOCS_HEADER = ("<!-- Generated from heatparam.options.OPTIONS; do not edit. Regenerate with:",
+                "python -c \"from heatparam.options import options_markdown; print(options_markdown(), end='')\" "
+                "> docs/options.md -->")
+_DOCS_INTRO = (
+    "Every knob of the pipeline. The API takes the names (`parameterize(V, F, fill=\"none\")`, "
+    "`heatparam.options.make_options`), `heatparam unwrap` and `heatparam batch` the flags (`heatparam geodesics` "
+    "the heat method's: `--time-step`, `--t-coef`, `--solver`); `--help` shows one line each. The output flags "
+    "(`-o`, `--units`, `--sheet`, `--strain-map`, `--fit-tolerance`, `--report`, `--preview`) are described in "
+    "[formats.md](formats.md). Paths (docs/fill.md) are relative to the repository's root; section signs after "
+    "BENCHMARKS name sections of BENCHMARKS.md (the fill's section 2.5 is the paper's).")
+
+
+def options_markdown() -> str:
+    """docs/options.md: every option, grouped, with its flag, default, allowed values and full explanation, generated
+    from :data:`OPTIONS` (``tests/test_docs.py`` keeps the file equal to this)."""
+    out = ["# Options", "", *_DOCS_HEADER, "", _wrap(_DOCS_INTRO), "", markdown_table(), ""]
+    for key, title in GROUPS.items():
+        out += [f"## {title[0].upper()}{title[1:]}", ""]
+        for o in (o for o in OPTIONS if o.group == key):
+            where = f"`{_spelling(o)}`" if o.flag else "API only (no flag)"
+            out += [f"### {o.name}", "", _wrap(f"{where} · default `{o.default}` · {_allowed(o)}"), "",
+                    _wrap(help_text(o)), ""]
+    return "\n".join(out)
+
+
+def _wrap(paragraph: str) -> str:
+    """A paragraph of docs/options.md at the docs' 120 columns, words kept whole; no line starts with a word that
+    markdown would read as a quote, list or heading marker (``> 1`` would start a quote)."""
+    lines = [""]
+    for word in paragraph.split(" "):
+        if lines[-1] and len(lines[-1]) + 1 + len(word) > 120 and not _MARKER.match(word):
+            lines.append(word)
+        else:
+            lines[-1] = f"{lines[-1]} {word}" if lines[-1] else word
+    return "\n".join(lines)
+
+
+_MARKER = re.compile(r"([>#*+=-]+|\d+[.)])$")
