@@ -66,3 +66,24 @@ def degrade(V: np.ndarray, F: np.ndarray, slivers: float = 0.02, needles: float 
         a, b, _ = F[f]
         V[a] = V[b] + squeeze * (V[a] - V[b])
     return V
+
+
+def split_edge(V: np.ndarray, F: np.ndarray, f: int, t: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """Edge (a, b) = (F[f,0], F[f,1]) split at ``t`` by a new vertex p on it, in face f only, as a repair that
+    closes a T-junction leaves it (issue 45): f = (a, b, c) becomes (a, p, c) and (p, b, c), and the zero-area face
+    (p, a, b) closes the gap to the face across a-b (unchanged). Manifold and oriented, one zero-area face (collinear
+    corners, no zero-length edge). V (n+1,3), F (m+2,3)."""
+    a, b, c = (int(x) for x in F[f])
+    p = len(V)
+    V = np.vstack([V, V[a] + t * (V[b] - V[a])])
+    F = np.vstack([F, [[p, b, c], [p, a, b]]]).astype(np.int64)
+    F[f] = [a, p, c]
+    return V, F
+
+
+def collinear_corner(V: np.ndarray, F: np.ndarray, f: int) -> np.ndarray:
+    """A copy of V with corner 0 of face f moved to the midpoint of the opposite edge: face f's three corners
+    collinear, the faces around it stretched (issue 45). (n,3)."""
+    V = V.copy()
+    V[F[f, 0]] = 0.5 * (V[F[f, 1]] + V[F[f, 2]])
+    return V

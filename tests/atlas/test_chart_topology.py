@@ -8,6 +8,8 @@ import numpy as np
 from heatparam import datasets
 from heatparam.atlas.chart_topology import Topology, chart_mesh, glue_inside
 
+from hostile import split_edge
+
 
 def _chart_mesh_by_scipy(topo, faces, glued, group):
     """The reference for :func:`chart_mesh`: corners welded across glued half-edges (within a group), labelled by
@@ -78,3 +80,14 @@ def test_cube_corners_are_cones_and_its_edges_creases():
     assert len(corners) == 8 and all(topo.cones()[v] for v in corners)
     np.testing.assert_allclose(topo.defect[corners], np.pi / 2)
     assert topo.crease.any() and not topo.crease[topo.opp < 0].any()
+
+
+def test_a_zero_area_face_takes_a_neighbours_normal_and_no_crease():
+    """A zero-area face has no normal of its own: with a zero one every edge of it was a crease (issue 45)."""
+    V, F = datasets.closed_cube(n=4)
+    V, F = split_edge(V, F, 5)
+    topo = Topology.build(V, F)
+    z = len(F) - 1  # split_edge's zero-area face
+    nb = topo.opp[3 * z:3 * z + 3] // 3
+    assert any(np.array_equal(topo.normals[z], topo.normals[g]) for g in nb)
+    assert np.isclose(np.linalg.norm(topo.normals[z]), 1.0) and not topo.crease[3 * z:3 * z + 3].all()

@@ -7,8 +7,10 @@ import numpy as np
 
 from heatparam import datasets
 from heatparam.atlas.chart_topology import Topology, chart_mesh
-from heatparam.atlas.flatten import flatten_charts, quick_flatten
+from heatparam.atlas.flatten import flatten_charts, lscm, quick_flatten, segment_layout
 from heatparam.atlas.segment import segment
+
+from hostile import split_edge
 
 
 def _torus_charts():
@@ -87,3 +89,39 @@ def test_quick_flatten_of_a_flat_chart_is_an_isometry():
     topo = Topology.build(s.V, s.F)
     Vl, Fl, _ = chart_mesh(topo, np.arange(len(s.F)), np.ones(3 * len(s.F), dtype=bool))
     assert len(Fl) == len(s.F)
+
+
+def test_lscm_lays_a_zero_area_face_out_as_a_thin_triangle_of_the_right_orientation():
+    """igl's cotangents are NaN on a zero-area face (the whole layout was NaN, the chart never passed its check); the
+    mollified least-squares map lays it out thin and positive, its neighbours as before to within the mollification."""
+    s = datasets.flat_disk(h=0.2)
+    V, F = split_edge(s.V, s.F, 30)
+    uv, iso, bijective = quick_flatten(V, F)
+    assert bijective and np.isfinite(uv).all() and iso < 1.01
+    T = uv[F]
+    e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
+    sa = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    assert (sa > 0).all() and sa[-1] < 0.05 * np.median(sa)  # the zero-area face: the last one
+    plain, _, _ = quick_flatten(s.V, s.F)
+    assert np.abs(uv[:len(s.V)] - plain).max() < 1e-3  # the flat disk's own map, all but unchanged
+
+
+def test_lscm_without_zero_area_faces_is_igls():
+    import igl
+
+    s = datasets.cylinder_patch(h=0.2)
+    b, bc = np.array([0, 5]), np.array([[0.0, 0.0], [1.0, 0.0]])
+    res = igl.lscm(s.V, s.F, b, bc)
+    assert np.array_equal(lscm(s.V, s.F, b, bc), np.asarray(res[0] if isinstance(res, tuple) else res))
+
+
+def test_segment_layout_keeps_every_length():
+    V = np.array([[0.0, 0, 0], [1, 1, 1], [3, 3, 3], [2, 2, 2], [9, 9, 9]])
+    F = np.array([[0, 2, 1], [1, 2, 3]])
+    uv = segment_layout(V, F)
+    for f in F:
+        for i, j in ((0, 1), (1, 2), (2, 0)):
+            assert np.isclose(np.linalg.norm(uv[f[i]] - uv[f[j]]), np.linalg.norm(V[f[i]] - V[f[j]]))
+    assert (uv[:, 1] == 0).all() and (uv[4] == 0).all()  # on one line; the unused row at 0
+    bent = np.array([[0.0, 0, 0], [0, 0, 0], [1, 0, 0], [0, 1, 0]])  # two point-like faces, not on one line
+    assert segment_layout(bent, np.array([[0, 1, 2], [1, 0, 3]])) is None

@@ -8,6 +8,8 @@ from heatparam import datasets
 from heatparam.atlas.chart_topology import Topology
 from heatparam.atlas.grow import farthest_seeds, grow, halves
 
+from hostile import split_edge
+
 
 def test_seeds_from_the_direct_csr_graph_match_the_coo_graph():
     """farthest_seeds builds the face graph's CSR arrays directly (its rows ascend); forced through COO (the path of
@@ -55,3 +57,24 @@ def test_halves_split_a_chart_into_two_welded_disks():
     for p, glued in parts:
         assert _is_disk(topo, p) and glued[(3 * p[:, None] + np.arange(3)).ravel()].any()
     assert halves(topo, faces[:1], np.zeros(3 * len(F), dtype=bool), 0) == []
+
+
+def test_zero_area_faces_grow_into_their_neighbours_regions_even_as_seeds():
+    """A zero-area face joins a region with faces that have an area, whether it is reached or picked as a seed (its
+    region's normal is its neighbour's until a face with an area joins)."""
+    V, F = datasets.torus(n_major=24, n_minor=10)
+    for f in (3, 100, 400):
+        V, F = split_edge(V, F, f)
+    topo = Topology.build(V, F)
+    zero = np.arange(len(F) - 3 * 2 + 1, len(F), 2)  # split_edge's zero-area faces: every second new row
+    assert np.allclose(topo.areas[zero], 0.0)
+    for seed in range(4):
+        regions = grow(topo, np.arange(len(F)), 60.0, 80, seed)
+        assert np.array_equal(np.sort(np.concatenate(regions)), np.arange(len(F)))
+        assert all(len(r) > 1 and _is_disk(topo, r) for r in regions if np.isin(zero, r).any())
+    for g in topo.opp[3 * zero[0]:3 * zero[0] + 3] // 3:  # the zero-area face and a neighbour: one region,
+        pair = np.sort([zero[0], g])  # whichever of the two seeds it
+        seeds = {int(farthest_seeds(topo, pair, 1, seed)[0]) for seed in range(8)}
+        assert seeds == set(pair.tolist())
+        for seed in range(8):
+            assert [r.tolist() for r in grow(topo, pair, 60.0, 2, seed)] == [pair.tolist()]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from heatparam.atlas.overlap import count_overlaps, overlapping_pairs, uv_degenerate_faces
+from heatparam.atlas.overlap import count_overlaps, folded_zero_area, overlapping_pairs, uv_degenerate_faces
 from heatparam.metrics import boundary_crossings
 
 
@@ -73,3 +73,17 @@ def test_overlap_matches_clipping_on_random_triangles():
     got = {tuple(p) for p in overlapping_pairs(uv, Fuv).tolist()}
     want = {(i, j) for i in range(60) for j in range(i + 1, 60) if _clip_area(T[i], T[j]) > 1e-12}
     assert got == want and len(want) > 20
+
+
+def test_folded_zero_area_face():
+    """A zero-area face whose UV triangle turns the other way than the map folds over its neighbours (the metrics
+    leave it out); a UV segment or a thin triangle the right way round does not."""
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [1, 1, 0]])
+    F = np.array([[0, 1, 3], [1, 2, 3], [0, 2, 1]])  # the last face: collinear corners
+    uv = V[:, :2].copy()
+    assert folded_zero_area(V, F, uv) == 0  # exactly a segment
+    uv[1, 1] = 1e-3
+    assert folded_zero_area(V, F, uv) == 0  # thin, counter-clockwise like the map
+    assert folded_zero_area(V, F, uv * [-1, 1]) == 0  # the mirrored map: all its faces turn the other way
+    uv[1, 1] = -1e-3
+    assert folded_zero_area(V, F, uv) == folded_zero_area(V, F, uv * [-1, 1]) == 1

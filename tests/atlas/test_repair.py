@@ -119,3 +119,13 @@ def test_union_of_components_keeps_every_face_and_its_owner():
     part, owner = union([rep.components[i] for i in ids], ids)
     np.testing.assert_array_equal(part.vertex[part.F], F[part.faces])
     np.testing.assert_array_equal(owner, np.repeat(ids, [len(rep.components[i].F) for i in ids]))
+
+
+def test_a_component_of_zero_area_faces_is_kept_a_mesh_of_them_refused():
+    V, F = datasets.closed_cube(n=2)
+    line = np.array([[3.0, 0, 0], [4, 0, 0], [5, 0, 0]])
+    rep = repair(np.vstack([V, line]), np.vstack([F, [[len(V), len(V) + 2, len(V) + 1]]]))
+    assert len(rep.components) == 2 and len(rep.components[1].F) == 1
+    with pytest.raises(MeshError, match="all faces have zero area") as exc:
+        repair(line, np.array([[0, 2, 1]]))
+    assert "—" in str(exc.value)  # and what to do

@@ -97,3 +97,11 @@ def test_packed_sort_is_the_stable_argsort():
         xs, order = sort_with_order(x)
         assert np.array_equal(order, ref) and np.array_equal(stable_argsort(x), ref)
         assert np.array_equal(xs, x[ref]) and xs.dtype == x.dtype
+
+
+def test_degenerate_faces_collinear_and_point_like():
+    from heatparam.mesh.topology import degenerate_faces
+
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [1, 1, 0], [1, 1e-9, 0]])
+    F = np.array([[0, 1, 3], [0, 2, 1], [0, 0, 0], [0, 2, 4]])
+    assert degenerate_faces(V, F).tolist() == [False, True, True, False]  # a sliver of height 1e-9 has an area

@@ -11,10 +11,12 @@ import pytest
 from heatparam import datasets
 from heatparam.atlas.overlap import count_overlaps, uv_degenerate_faces
 from heatparam.errors import MeshError
+from heatparam.mesh.topology import degenerate_faces
 from heatparam.metrics import distortion
 from heatparam.pipeline import atlas_stage, parameterize_disk
 
 from conftest import shared_mesh
+from hostile import collinear_corner, split_edge
 
 atlas = partial(atlas_stage.atlas, flatten_disk=parameterize_disk)
 
@@ -173,3 +175,100 @@ def test_atlas_charts_skip_the_heat_stage_unless_asked(monkeypatch):
     s = datasets.cylinder_patch(h=0.15)
     rep = heatparam.parameterize(s.V, s.F, mds_start="never").report
     assert rep["method"]["geodesics"].startswith("skipped: mds_start='never'") and rep["metrics"]["bijective"]
+
+
+# ----------------------------------------------------------------------------------------------------------
+# zero-area faces (issue 45): inside a chart, alone, a whole tiny component
+# ----------------------------------------------------------------------------------------------------------
+def _zero_area_ok(V, F, uv, Fuv):
+    """Every face mapped, no flip, no overlap, and no zero-area face folded over its neighbours."""
+    from heatparam.atlas.overlap import folded_zero_area
+
+    assert np.isfinite(uv).all()
+    d = distortion(V, F, uv, Fuv)
+    assert d["flips"] == 0 and count_overlaps(uv, Fuv) == 0 and folded_zero_area(V, F, uv, Fuv) == 0
+    return d
+
+
+@pytest.mark.parametrize("make", [datasets.closed_cube, datasets.capped_cylinder, datasets.torus])
+@pytest.mark.parametrize("how", ["split edge", "collinear corners"])
+def test_closed_mesh_with_zero_area_faces(make, how):
+    """Two closed meshes of a batch (90 and 62k vertices) with 2 and 4 zero-area faces failed with "a chart of 1
+    faces could not be flattened: None": such a face had no normal, so every edge of it was a crease and it became
+    a chart of its own that no layout flattens. Now it grows into a neighbour's chart and is laid out with it."""
+    import heatparam
+
+    V, F = make()
+    if how == "split edge":
+        V, F = split_edge(V, F, 7)
+        V, F = split_edge(V, F, len(F) // 2)
+    else:
+        V = collinear_corner(V, F, 7)
+    zero = int(degenerate_faces(V, F).sum())
+    assert zero >= 1
+    for kw in ({}, {"max_distortion": 1.05}):
+        r = heatparam.parameterize(V, F, **kw)
+        d = _zero_area_ok(V, F, r.uv, r.Fuv)
+        assert d["degenerate_faces"] == zero == r.report["mesh"]["zero_area_faces"]
+        assert any("zero-area faces" in w for w in r.report["warnings"])
+        charts = r.report["method"]["atlas"]["charts"]
+        assert all(c["faces"] > 1 for c in charts)  # no chart of the zero-area face alone
+        assert d["iso_mean"] < 1.1
+
+
+def test_zero_area_faces_alone_and_as_a_tiny_component():
+    """A component of zero-area faces only (one face; two faces on one line) is laid out as the segment it is: every
+    length kept, zero area both ways; beside it the closed mesh is charted as usual."""
+    V, F = datasets.closed_cube(n=4)
+    line = np.array([[3.0, 0, 0], [4, 0, 0], [5, 0, 0], [6, 0, 0]])
+    for tiny in ([[0, 2, 1]], [[0, 2, 1], [1, 2, 3]]):
+        W, G = np.vstack([V, line]), np.vstack([F, np.asarray(tiny) + len(V)])
+        res = atlas(W, G)
+        _zero_area_ok(W, G, res.uv, res.Fuv)
+        seg = [c for c in res.report["charts"] if c["method"] == "segment (zero-area faces)"]
+        assert seg and sum(c["faces"] for c in seg) == len(tiny) == res.report["totals"]["zero_area_faces"]
+        rows = res.Fuv[len(F):]
+        P = res.uv[rows]
+        assert np.allclose(np.linalg.norm(P[:, 0] - P[:, 1], axis=1),
+                           np.linalg.norm(line[np.asarray(tiny)[:, 0]] - line[np.asarray(tiny)[:, 1]], axis=1))
+        assert uv_degenerate_faces(res.uv, rows).all()
+
+
+def test_a_chart_with_a_folded_zero_area_face_is_not_kept_whole():
+    """With refine='none' the raw map of a small disk folded its zero-area face over both neighbours, which the
+    metrics (they leave zero-area faces out) call bijective: the whole part is now refused and segmented."""
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [1, 1, 0]])
+    F = np.array([[0, 1, 3], [1, 2, 3], [0, 2, 1]])
+    cube_V, cube_F = datasets.closed_cube(n=2)
+    W, G = np.vstack([cube_V, V + [5, 0, 0]]), np.vstack([cube_F, F + len(cube_V)])
+    for refine in ("none", "sd"):
+        res = atlas(W, G, refine=refine)
+        _zero_area_ok(W, G, res.uv, res.Fuv)
+
+
+def test_open_mesh_with_zero_area_faces_single_map_and_atlas():
+    import heatparam
+
+    s = datasets.cylinder_patch(h=0.15)
+    V, F = split_edge(s.V, s.F, 11)
+    V = collinear_corner(V, F, 40)
+    for kw in ({}, {"max_distortion": 1.05}, {"refine": "none", "max_distortion": 1.05}):
+        r = heatparam.parameterize(V, F, **kw)
+        _zero_area_ok(V, F, r.uv, r.Fuv)
+        assert r.report["mesh"]["zero_area_faces"] == 2
+
+
+def test_chart_failure_message_says_why_and_what_to_do(monkeypatch):
+    """The chart that nothing flattens: one line with its reason, never a Python None."""
+    from heatparam.errors import HeatparamError
+
+    def refuse(V, F, opts):
+        raise HeatparamError("no map")
+
+    monkeypatch.setattr(atlas_stage, "quick_flatten", lambda Vl, Fl: (None, float("inf"), False))
+    monkeypatch.setattr(atlas_stage, "halves", lambda *a: [])
+    V, F = datasets.closed_cube(n=2)
+    with pytest.raises(HeatparamError) as exc:
+        atlas_stage.atlas(V, F, refuse, mds_start="always")
+    msg = str(exc.value)
+    assert "None" not in msg and "\n" not in msg and "could not be flattened" in msg and "repair" in msg

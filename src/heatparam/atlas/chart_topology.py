@@ -12,6 +12,7 @@ import igl
 import numpy as np
 
 from heatparam.atlas.repair import half_edge_opposites
+from heatparam.mesh.topology import degenerate_faces
 
 __all__ = ["CONE_DEFECT", "DEFAULT_CREASE", "Topology", "chart_mesh", "glue_inside"]
 
@@ -85,6 +86,9 @@ class Topology:
         N = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
         area2 = np.linalg.norm(N, axis=1)
         normals = N / np.maximum(area2, 1e-300)[:, None]
+        degenerate = degenerate_faces(V, F)
+        if degenerate.any():
+            normals = _borrowed_normals(normals, degenerate, opp, area2)
         h = np.arange(3 * len(F))
         crease = np.zeros(3 * len(F), dtype=bool)
         ok = opp >= 0
@@ -98,6 +102,28 @@ class Topology:
         onb[a[~ok]] = True
         defect = np.where(onb, np.pi, 2 * np.pi) - asum
         return cls(V, F, opp, normals, 0.5 * area2, crease, defect, hlen)
+
+
+def _borrowed_normals(normals: np.ndarray, degenerate: np.ndarray, opp: np.ndarray, area2: np.ndarray
+                      ) -> np.ndarray:
+    """(m,3) ``normals`` where each zero-area face has its largest neighbour's normal (a cluster of them from the
+    outside in). A zero-area face has no normal of its own: with a zero or arbitrary one every edge of it was a crease
+    and no cone took it in, so it seeded a chart of one face that no layout flattens; with a neighbour's it grows
+    into that neighbour's chart, which lays it out with its neighbours. A component of zero-area faces only keeps
+    what it had."""
+    normals = normals.copy()
+    has = ~degenerate
+    nb = np.where(opp >= 0, opp // 3, -1).reshape(-1, 3)
+    while True:
+        todo = np.flatnonzero(~has)
+        cand = nb[todo]
+        w = np.where((cand >= 0) & has[np.maximum(cand, 0)], area2[np.maximum(cand, 0)], -1.0)
+        pick = w.argmax(axis=1)
+        found = w[np.arange(len(todo)), pick] >= 0
+        if not found.any():
+            return normals
+        normals[todo[found]] = normals[cand[np.arange(len(todo)), pick][found]]
+        has[todo[found]] = True
 
 
 def chart_mesh(topo: Topology, faces: np.ndarray, glued: np.ndarray, group: np.ndarray | None = None

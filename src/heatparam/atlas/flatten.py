@@ -12,14 +12,17 @@ from dataclasses import dataclass
 
 import igl
 import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from heatparam.atlas.chart_topology import Topology, chart_mesh
 from heatparam.errors import HeatparamError
-from heatparam.mesh.topology import unique_ints
+from heatparam.mesh.topology import degenerate_faces, unique_ints
 from heatparam.metrics import crossing_pairs, true_scale_iso
+from heatparam.refine.energy import surface_gradients
 
-__all__ = ["Flattenings", "chart_iso", "crossings_per_chart", "flatten_charts", "flatten_components",
-           "quick_flatten"]
+__all__ = ["Flattenings", "chart_iso", "crossings_per_chart", "flatten_charts", "flatten_components", "lscm",
+           "quick_flatten", "segment_layout"]
 
 
 def chart_iso(V: np.ndarray, F: np.ndarray, uv: np.ndarray, fgroup: np.ndarray, k: int
@@ -171,14 +174,40 @@ def _lscm(Vl: np.ndarray, Fl: np.ndarray, p0: np.ndarray, p1: np.ndarray) -> np.
     puv = np.zeros((len(p0) + len(p1), 2))
     puv[len(p0):, 0] = 1.0
     try:
-        res = igl.lscm(Vl[used], loc[Fl], loc[np.concatenate([p0, p1])], puv)
+        res = lscm(Vl[used], loc[Fl], loc[np.concatenate([p0, p1])], puv)
     except (RuntimeError, ValueError) as exc:
         raise HeatparamError(f"LSCM failed: {exc}") from None
     uv = np.zeros((len(Vl), 2))
-    uv[used] = np.asarray(res[0] if isinstance(res, tuple) else res, dtype=np.float64)
+    uv[used] = res
     if not np.isfinite(uv).all():
         raise HeatparamError("non-finite LSCM layout")
     return uv
+
+
+def lscm(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarray) -> np.ndarray:
+    """LSCM of (V, F) with the rows ``b`` pinned at ``bc`` (k,2): (n,2), every row used by a face. ``igl.lscm``;
+    where F has zero-area faces, the least-squares conformal map of the intrinsically mollified triangles (the
+    polish's, ``refine.energy.surface_gradients``): igl's cotangents are NaN on a zero-area face, and the mollified
+    one is laid out as a thin triangle of the right orientation, a start the polish can take. Raises RuntimeError
+    (singular system) as igl does."""
+    if not degenerate_faces(V, F).any():
+        res = igl.lscm(V, F, b, bc)
+        return np.asarray(res[0] if isinstance(res, tuple) else res, dtype=np.float64)
+    n, m = len(V), len(F)
+    g, area = surface_gradients(V, F)
+    gx, gy = (g[:, :, c] * np.sqrt(area)[:, None] for c in (0, 1))
+    # per face the Cauchy-Riemann residuals u_x - v_y and u_y + v_x over the unknowns [u; v], area-weighted
+    rows = np.repeat(np.arange(2 * m), 6)
+    cols = np.concatenate([F, F + n], axis=1)
+    vals = np.stack([np.concatenate([gx, -gy], axis=1), np.concatenate([gy, gx], axis=1)])
+    M = sp.csc_matrix((vals.ravel(), (rows, np.concatenate([cols, cols]).ravel())), shape=(2 * m, 2 * n))
+    fixed = np.concatenate([b, b + n])
+    free = np.setdiff1d(np.arange(2 * n), fixed)
+    x = np.zeros(2 * n)
+    x[fixed] = np.concatenate([bc[:, 0], bc[:, 1]])
+    Mf = M[:, free]
+    x[free] = spla.splu((Mf.T @ Mf).tocsc()).solve(-(Mf.T @ (M[:, fixed] @ x[fixed])))
+    return np.column_stack([x[:n], x[n:]])
 
 
 def _true_area(Vl, Fl, uv, fgroup, vgroup, k) -> None:
@@ -219,3 +248,22 @@ def quick_flatten(Vl: np.ndarray, Fl: np.ndarray) -> tuple[np.ndarray | None, fl
     if not np.isfinite(iso[0]):
         return None, float("inf"), False
     return uv, float(iso[0]), bool(disk[0] and flips[0] == 0 and cross[0] == 0)
+
+
+def segment_layout(Vl: np.ndarray, Fl: np.ndarray) -> np.ndarray | None:
+    """A chart of zero-area faces only, laid out exactly: (n,2) each vertex at its place along the line the chart
+    lies on (triangles joined by edges of nonzero length that each have zero area lie on one line), so every length
+    is kept and every face is a segment, zero area both ways, flipping nothing; rows no face uses at 0. None when
+    the vertices are not on one line (within 1e-7 of its length)."""
+    used = unique_ints(Fl)
+    E = Vl[used] - Vl[used[0]]
+    far = int(np.argmax(np.einsum("ij,ij->i", E, E)))
+    length = float(np.linalg.norm(E[far]))
+    uv = np.zeros((len(Vl), 2))
+    if length == 0.0:
+        return uv
+    t = E @ (E[far] / length)
+    if np.linalg.norm(E - np.outer(t, E[far] / length), axis=1).max() > 1e-7 * length:
+        return None
+    uv[used, 0] = t
+    return uv

@@ -116,8 +116,9 @@ class _Growth:
             label[s] = r
             self.nsum.append([x * self.areas[s] for x in nrm[s]])
             ns = self.nsum[r]
-            length = max(math.sqrt(ns[0] * ns[0] + ns[1] * ns[1] + ns[2] * ns[2]), 1e-300)
-            self.unit.append([ns[0] / length, ns[1] / length, ns[2] / length])
+            length = math.sqrt(ns[0] * ns[0] + ns[1] * ns[1] + ns[2] * ns[2])
+            # a zero-area seed: its own (a neighbour's, Topology.build) normal, until a face with an area joins
+            self.unit.append([ns[0] / length, ns[1] / length, ns[2] / length] if length > 1e-300 else list(nrm[s]))
             self.vmark.append(set(self.F[s]))
             ns = nrm[s]
             for o in cross[s]:
@@ -157,8 +158,9 @@ class _Growth:
             ns = nsum[r]
             x, y, z = ns[0] + ng[0] * a, ns[1] + ng[1] * a, ns[2] + ng[2] * a
             nsum[r] = [x, y, z]
-            length = max(math.sqrt(x * x + y * y + z * z), 1e-300)
-            unit[r] = [x / length, y / length, z / length]
+            length = math.sqrt(x * x + y * y + z * z)
+            if length > 1e-300:  # (else: zero-area faces only so far, the seed's normal stays)
+                unit[r] = [x / length, y / length, z / length]
             self.vmark[r].update(vs)
             for o in cross[g]:
                 if label[o] == -1:

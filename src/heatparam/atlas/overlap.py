@@ -14,9 +14,9 @@ from fractions import Fraction
 
 import numpy as np
 
-from heatparam.mesh.topology import pairs_in_groups
+from heatparam.mesh.topology import degenerate_faces, pairs_in_groups
 
-__all__ = ["overlapping_pairs", "count_overlaps", "uv_degenerate_faces"]
+__all__ = ["count_overlaps", "folded_zero_area", "overlapping_pairs", "uv_degenerate_faces"]
 
 _EPS = np.finfo(np.float64).eps
 _ERRBOUND = (3.0 + 16.0 * _EPS) * _EPS  # Shewchuk's ccwerrboundA
@@ -49,6 +49,22 @@ def uv_degenerate_faces(uv: np.ndarray, Fuv: np.ndarray) -> np.ndarray:
     P = uv[Fuv]
     s = _orient(P[:, 0, 0], P[:, 0, 1], P[:, 1, 0], P[:, 1, 1], P[:, 2, 0], P[:, 2, 1])
     return s == 0
+
+
+def folded_zero_area(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray | None = None) -> int:
+    """Zero-area 3D faces whose UV triangle is a triangle of the orientation opposite to the map's (that of the
+    larger signed UV area): a fold over its neighbours that the metrics, which leave zero-area faces out, do not
+    count as a flip. Exact orientation test; a UV segment or point is no fold."""
+    Fuv = F if Fuv is None else Fuv
+    zero = np.flatnonzero(degenerate_faces(V, F))
+    if not len(zero):
+        return 0
+    P = uv[Fuv]
+    e1, e2 = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
+    way = np.sign((e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum())
+    Z = P[zero]
+    s = _orient(Z[:, 0, 0], Z[:, 0, 1], Z[:, 1, 0], Z[:, 1, 1], Z[:, 2, 0], Z[:, 2, 1])
+    return int((s == -way).sum()) if way else 0
 
 
 def _candidates(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

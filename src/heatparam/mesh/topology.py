@@ -70,6 +70,13 @@ def face_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
 
 
+def degenerate_faces(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(m,) bool: zero-area faces (``DEGENERATE_AREA_REL`` of the squared longest edge; a point-like face too)."""
+    E = V[F[:, [1, 2, 0]]] - V[F]
+    longest2 = np.einsum("ijk,ijk->ij", E, E).max(axis=1)
+    return 2 * face_areas(V, F) <= DEGENERATE_AREA_REL * longest2
+
+
 def _half_edges(F: np.ndarray) -> np.ndarray:
     return np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
 

@@ -28,6 +28,11 @@ from heatparam.mesh.topology import (
 NEARLY_CLOSED_RATIO = 0.5
 
 
+#: the refusal of a mesh without area (the validation's and the atlas repair's)
+ALL_ZERO_AREA = ("all faces have zero area (collinear or coincident corners): there is no surface to flatten — check "
+                 "the file's export")
+
+
 @dataclass
 class MeshInfo:
     """Facts about a validated mesh (all counts refer to the input arrays)."""
@@ -256,7 +261,7 @@ def _facts(V: np.ndarray, F: np.ndarray, edges: Edges, referenced: np.ndarray, l
         diameter=float(np.linalg.norm(V[referenced].max(0) - V[referenced].min(0))),
     )
     if info.area <= 0:
-        raise MeshError("all faces have zero area — the mesh is degenerate")
+        raise MeshError(ALL_ZERO_AREA)
     if info.n_unreferenced:
         info.warnings.append(
             f"{info.n_unreferenced} unreferenced vertices kept in the output at the layout's centroid"

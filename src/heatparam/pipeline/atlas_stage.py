@@ -30,15 +30,16 @@ import numpy as np
 from heatparam import metrics
 from heatparam.atlas.chart_seams import chart_seam_lengths, cut_half_edges, seam_length
 from heatparam.atlas.chart_topology import Topology, chart_mesh
-from heatparam.atlas.flatten import quick_flatten
+from heatparam.atlas.flatten import quick_flatten, segment_layout
 from heatparam.atlas.grow import halves
-from heatparam.atlas.overlap import count_overlaps, uv_degenerate_faces
+from heatparam.atlas.overlap import count_overlaps, folded_zero_area, uv_degenerate_faces
 from heatparam.atlas.pack import pack_charts
 from heatparam.atlas.polish import polish_charts
 from heatparam.atlas.repair import Component, Repair, half_edge_opposites, repair, union
 from heatparam.atlas.segment import proxy_bound, segment
 from heatparam.errors import HeatparamError
 from heatparam.mesh import validate_mesh
+from heatparam.mesh.topology import degenerate_faces
 from heatparam.options import Options, make_options
 from heatparam.pipeline.report import Result, envelope
 from heatparam.refine import RefineParams
@@ -125,7 +126,7 @@ def atlas(V: np.ndarray, F: np.ndarray, flatten_disk: DiskFlattener, *, max_dist
     res.report = {"parameters": {"max_distortion": max_distortion, "bound_used": bound, "max_charts": max_charts,
                                  "pack": pinfo["mode"]},
                   **_report(V, F, res, charts=maker.charts, rep=rep, components=components, tiny=tiny, pinfo=pinfo),
-                  "warnings": _warnings(len(maker.charts), max_charts, rep),
+                  "warnings": _warnings(len(maker.charts), max_charts, rep, degenerate_faces(V, F).sum()),
                   "seconds": {"charts": t_flat, "total": time.perf_counter() - t0}}
     return res
 
@@ -153,7 +154,8 @@ def atlas_result(V: np.ndarray, F: np.ndarray, opts: Options, *, why: str, flatt
     method = {"atlas": res.report, "why": why, "seams": {"mode": opts.seams, "used": True,
                                                          "reason": "charts of an atlas"}}
     mesh_facts = {"vertices": len(V), "faces": len(F), "unreferenced_vertices": int((~referenced).sum()),
-                  "components": len(res.report["components"]), "repair": res.report["repair"]}
+                  "zero_area_faces": t["zero_area_faces"], "components": len(res.report["components"]),
+                  "repair": res.report["repair"]}
     report = envelope(o, method, mesh_facts, summary, {"atlas": round(float(res.report["seconds"]["total"]), 4)},
                       warnings)
     if prog is not None:
@@ -214,9 +216,9 @@ class _ChartMaker:
         except HeatparamError:
             return None
         met = res.report["metrics"]
-        if not (met["bijective"] and not met["flips"]):
-            return None
         Fuv = res.Fuv if res.Fuv is not None else comp.F
+        if not (met["bijective"] and not met["flips"]) or folded_zero_area(comp.V, comp.F, res.uv, Fuv):
+            return None
         return Chart(comp.faces, np.asarray(Fuv, dtype=np.int64), comp.vertex[res.uv_vertex], res.uv, ci,
                      {"iso_mean": float(met["iso_mean"]), "flips": int(met["flips"]), "bijective": True,
                       "method": "pipeline (whole part)"})
@@ -264,13 +266,24 @@ class _ChartMaker:
                     todo.extend((faces[i:i + 1], np.zeros_like(glued)) for i in range(len(faces)))
                     continue
             if uv is None:
-                raise HeatparamError(f"a chart of {len(faces)} faces could not be flattened: {info.get('error')}")
+                raise HeatparamError(f"a chart of {len(faces)} face(s) could not be flattened: "
+                                     f"{info.get('error', 'no valid layout')} — repair the mesh there (remove "
+                                     "sliver or duplicate faces) and try again")
             self._add(comp, owner, faces, Fl=Fl, vert=vert, uv=uv, info=info)
 
     def _flatten(self, Vl: np.ndarray, Fl: np.ndarray) -> tuple[np.ndarray | None, dict]:
-        """The pipeline's map of one disk chart, or (None, reason) when it fails."""
+        """The pipeline's map of one disk chart, or (None, {"error": why}) when it fails. A chart of zero-area faces
+        only (one that no neighbour took in: a tiny component of them) is laid out as the segment it is."""
+        if degenerate_faces(Vl, Fl).all():
+            uv = segment_layout(Vl, Fl)
+            if uv is None:
+                return None, {"error": "its zero-area faces do not lie on one line"}
+            return uv, {"iso_mean": 1.0, "flips": 0, "bijective": True, "boundary_crossings": 0,
+                        "method": "segment (zero-area faces)"}
         if len(Fl) < 2:
             uv, iso, bij = quick_flatten(Vl, Fl)
+            if uv is None:
+                return None, {"error": "its triangle has no finite layout"}
             return uv, {"iso_mean": iso, "flips": 0 if bij else 1, "bijective": bij, "boundary_crossings": 0,
                         "method": "exact triangle"}
         try:
@@ -280,7 +293,8 @@ class _ChartMaker:
         met = res.report["metrics"]
         if res.Fuv is not None and not np.array_equal(res.Fuv, Fl):
             return None, {"error": "the pipeline cut the chart"}
-        return res.uv, {"iso_mean": float(met["iso_mean"]), "flips": int(met["flips"]),
+        flips = int(met["flips"]) + folded_zero_area(Vl, Fl, res.uv)  # (the metrics leave zero-area faces out)
+        return res.uv, {"iso_mean": float(met["iso_mean"]), "flips": flips,
                         "boundary_crossings": int(met.get("boundary_crossings", 0)),
                         "bijective": bool(met["bijective"]), "method": "pipeline"}
 
@@ -331,6 +345,7 @@ def _report(V: np.ndarray, F: np.ndarray, res: AtlasResult, *, charts: list[Char
         "flips": d["flips"],
         "overlapping_triangle_pairs": count_overlaps(res.uv, res.Fuv),
         "uv_degenerate_faces": int(uv_degenerate_faces(res.uv, res.Fuv).sum()),
+        "zero_area_faces": int(degenerate_faces(V, F).sum()),
         "packing_efficiency": pinfo["efficiency"],
         "area": area,
         "uv_scale": pinfo["scale"],
@@ -340,7 +355,9 @@ def _report(V: np.ndarray, F: np.ndarray, res: AtlasResult, *, charts: list[Char
             "components": components, "charts": per, "totals": totals, "pack": pinfo}
 
 
-def _warnings(charts: int, max_charts: int | None, rep: Repair) -> list[str]:
+def _warnings(charts: int, max_charts: int | None, rep: Repair, zero_area: int) -> list[str]:
     return (([f"{charts} charts exceed --max-charts {max_charts}"] if max_charts is not None and charts > max_charts
              else [])
-            + ([f"{len(rep.loose_points)} unreferenced vertices kept without UV"] if len(rep.loose_points) else []))
+            + ([f"{len(rep.loose_points)} unreferenced vertices kept without UV"] if len(rep.loose_points) else [])
+            + ([f"{zero_area} zero-area faces laid out with the charts around them (intrinsic mollification of edge "
+                "lengths), or as segments where they are alone"] if zero_area else []))
