@@ -5,6 +5,8 @@ Each function returns plain arrays ``V (n,3) float64, F (m,3) int64`` (counter-c
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 
 from heatparam.datasets import mesh_domain, polygon
@@ -87,3 +89,32 @@ def collinear_corner(V: np.ndarray, F: np.ndarray, f: int) -> np.ndarray:
     V = V.copy()
     V[F[f, 0]] = 0.5 * (V[F[f, 1]] + V[F[f, 2]])
     return V
+
+
+def ply_bytes(V: np.ndarray, faces: list | None = None, strips: list | None = None, fmt: str = "ascii",
+              vtype: str = "float", index_name: str = "vertex_indices", extra: bool = True) -> bytes:
+    """A PLY file as exporters write them (issue 45): ``fmt`` ascii, binary_little_endian or binary_big_endian;
+    vertices x, y, z of ``vtype`` (float or double), with extra properties (a normal, a colour) when ``extra``;
+    a ``face`` element of polygons ``faces`` (lists of indices, with a uchar flag after the list when ``extra``)
+    and / or a ``tristrips`` element of one row per strip (int lists, -1 restarts), the list named ``index_name``;
+    neither: a point cloud."""
+    head = [f"ply\nformat {fmt} 1.0\ncomment made by a scanner\nelement vertex {len(V)}"]
+    head += [f"property {vtype} {c}" for c in "xyz"]
+    head += ["property float nx", "property uchar red"] if extra else []
+    if faces is not None:
+        head += [f"element face {len(faces)}", f"property list uchar int {index_name}"]
+        head += ["property uchar flags"] if extra else []
+    if strips is not None:
+        head += [f"element tristrips {len(strips)}", f"property list int int {index_name}"]
+    head = ("\n".join(head) + "\nend_header\n").encode()
+    rows = [[*(float(x) for x in v), *([0.5, 7] if extra else [])] for v in V]
+    lists = [[len(f), *f, *([1] if extra else [])] for f in faces or []] + [[len(s), *s] for s in strips or []]
+    if fmt == "ascii":
+        return head + "".join(" ".join(map(repr, r)) + "\n" for r in rows + lists).encode()
+    e = "<" if fmt == "binary_little_endian" else ">"
+    vfmt = e + ("3f" if vtype == "float" else "3d") + ("fB" if extra else "")
+    body = b"".join(struct.pack(vfmt, *r) for r in rows)
+    nf = len(faces or [])
+    body += b"".join(struct.pack(e + f"B{len(r) - 1 - extra}i" + ("B" if extra else ""), *r) for r in lists[:nf])
+    body += b"".join(struct.pack(e + f"i{len(s)}i", len(s), *s) for s in strips or [])
+    return head + body

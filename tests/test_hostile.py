@@ -435,8 +435,11 @@ def test_interrupt_in_importlib_machinery_is_noted_then_raised():
 def test_ctrl_c_at_any_moment_is_clean(tmp_path):
     """SIGINT from the interpreter's start to the end of the run: exit 130 (or, before Python has installed any
     handler, the signal's own exit), at most one line, never a traceback, no output written, old output kept."""
-    src = tmp_path / "in.ply"  # a PLY: trimesh is imported, whose import swallows KeyboardInterrupt
-    src.write_bytes(ply_text(*grid(12)))
+    from heatparam.formats.meshuv import write_glb
+
+    src = tmp_path / "in.glb"  # a GLB: trimesh is imported, whose import swallows KeyboardInterrupt
+    V, F = grid(12)
+    write_glb(src, V, V[:, :2], F, np.arange(len(V)))
     env = dict(os.environ, PYTHONPATH=SRC)
     cmd = [sys.executable, "-m", "heatparam", "unwrap", str(src), "-o", str(tmp_path / "o.obj"), "--quiet"]
     t0 = time.perf_counter()

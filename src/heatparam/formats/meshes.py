@@ -1,8 +1,8 @@
 """Reading meshes.
 
-OBJ, OFF and STL load through heatparam's own tolerant readers (``formats.readers``: comments in any byte
-encoding, every OBJ index form, one-line errors naming the file and line); PLY through trimesh (meshio as
-fallback) with its header made ASCII; glTF/GLB scenes through trimesh. The vertex order is kept exactly (no
+OBJ, OFF, STL and PLY load through heatparam's own tolerant readers (``formats.readers``: comments in any byte
+encoding, every OBJ index form, PLY parsed by plyfile with its faces and triangle strips, one-line errors naming
+the file and line); glTF/GLB scenes through trimesh. The vertex order is kept exactly (no
 merging, no reordering; STL excepted, whose identical corners are merged). Quads and polygons are fan-triangulated.
 Plain triangle OBJs (``v x y z`` and three-corner ``f`` lines) take a vectorized fast path that reads exactly what
 the general reader reads, in less time (BENCHMARKS.md §4). trimesh and meshio are imported only when a file needs
@@ -49,9 +49,9 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     suffix = p.suffix.lower()
     if suffix not in MESH_SUFFIXES:
         raise HeatparamError(f"cannot read {p}: unsupported format {suffix!r} (use one of {', '.join(MESH_SUFFIXES)})")
-    # OBJ, OFF and STL: heatparam's own tolerant readers (``readers``; any byte encoding in comments, every OBJ
-    # index form), plain triangle OBJs through a vectorized fast path. PLY (its header made ASCII) and glTF go
-    # through trimesh (process=False, maintain_order=True: vertex order kept), meshio being the PLY fallback.
+    # OBJ, OFF, STL and PLY: heatparam's own tolerant readers (``readers``; any byte encoding in comments, every
+    # OBJ index form, PLY faces and triangle strips), plain triangle OBJs through a vectorized fast path. glTF goes
+    # through trimesh (process=False, maintain_order=True: vertex order kept).
     if suffix == ".obj":
         loaders = [load_obj_fast, _load_obj]
     elif suffix == ".off":
@@ -59,7 +59,7 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     elif suffix == ".stl":
         loaders = [readers.read_stl]
     elif suffix == ".ply":
-        loaders = [_load_trimesh, load_meshio]
+        loaders = [readers.read_ply]
     else:
         loaders = [_load_trimesh]
     first_error = None
@@ -80,6 +80,8 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         raise HeatparamError(first_error)
     if suffix == ".stl":
         V, F = _merge_stl(V, F)
+    if len(V) and not len(F):
+        raise HeatparamError(f"{p}: no faces: a point cloud; mesh it first, e.g. by Poisson reconstruction")
     if len(V) == 0 or len(F) == 0:
         raise HeatparamError(f"cannot read {p}: the file holds no triangles")
     return V, F
@@ -185,11 +187,7 @@ def _load_trimesh(p: Path) -> tuple[np.ndarray, np.ndarray]:
     quiet = contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO())
     with warnings.catch_warnings(), quiet[0], quiet[1]:
         warnings.simplefilter("ignore")
-        if p.suffix.lower() == ".ply":
-            src = {"file_obj": io.BytesIO(readers.ply_ascii_header(p)), "file_type": "ply"}
-        else:
-            src = {"file_obj": str(p)}
-        scene = trimesh.load(**src, process=False, maintain_order=True, force="scene")
+        scene = trimesh.load(file_obj=str(p), process=False, maintain_order=True, force="scene")
     geoms = [g for g in scene.dump() if hasattr(g, "faces")]
     if not geoms:
         raise HeatparamError(f"cannot read {p}: the file holds no triangles")
