@@ -51,9 +51,12 @@ def write_outputs(V, F, result, plans, *, units: str = DEFAULT_UNITS, sheet=None
 
     order = sorted(plans, key=lambda pl: pl.format == "json")  # the report last: it lists the other outputs
     report["outputs"] = written
+    known = len(report.setdefault("warnings", []))
     with interrupt.deferred():  # all the outputs or none: an interrupt waits until they are complete
         commit_outputs([(pl.path, recorded(pl)) for pl in order])
     if not quiet:
+        for w in report["warnings"][known:]:  # what writing found (a STEP face off its fit tolerance)
+            print(f"heatparam: warning: {w}", file=sys.stderr)
         m = report["metrics"]
         names = ", ".join(str(pl.path) for pl in plans)
         print(f"wrote {names} ({units}): {m['flips']} flipped, {m['boundary_crossings']} boundary crossings, "

@@ -250,3 +250,25 @@ def test_cli_step_bytes_are_reproducible(tmp_path):
         assert main(["unwrap", str(shared_mesh("woody.obj")), "-o", str(out), "--quiet"]) == 0
     data = (tmp_path / "w.step").read_bytes()
     assert data == (tmp_path / "x" / "w.step").read_bytes() and b".tmp" not in data
+
+
+def test_unwrap_reports_a_miss_on_stderr_and_in_the_report(tmp_path, monkeypatch, capsys):
+    """Through ``unwrap`` (what the CLI runs) a STEP face off the tolerance is a ``heatparam: warning:`` line on
+    stderr and a line of the report's warnings, not a Python warning; the file is still written."""
+    import json
+
+    from heatparam.unwrap import unwrap_file
+
+    s = datasets.cylinder_with_holes(h=0.1)
+    src = tmp_path / "part.off"
+    src.write_text(f"OFF\n{len(s.V)} {len(s.F)} 0\n" + "".join(f"{x!r} {y!r} {z!r}\n" for x, y, z in s.V.tolist())
+                   + "".join(f"3 {a} {b} {c}\n" for a, b, c in s.F.tolist()))
+    monkeypatch.setattr(step, "_START_INTERVALS", 2)
+    monkeypatch.setattr(step, "MAX_CONTROL_POINTS", 30)
+    monkeypatch.setattr(step, "_MAX_SPLITS", 0)
+    unwrap_file(src, [tmp_path / "part.step"], report=tmp_path / "r.json", quiet=False)
+    err = capsys.readouterr().err
+    assert "heatparam: warning: STEP: STEP face 0" in err and "x the fit tolerance" in err
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert any(w.startswith("STEP: STEP face 0") for w in rep["warnings"])
+    assert (tmp_path / "part.step").exists()

@@ -135,11 +135,19 @@ def _svg(path: Path, run: Run) -> dict:
 
 
 def _step(path: Path, run: Run) -> dict:
-    from heatparam.formats.step import write_step
+    """The STEP file; where it misses the fit tolerance (or is invalid, or unsewn) its warnings join the report's,
+    which the caller prints, instead of Python warnings."""
+    import warnings
+
+    from heatparam.formats.step import StepToleranceWarning, write_step
 
     r = run.result
-    return write_step(path, run.V, run.F, r.uv, r.Fuv, r.uv_vertex, chart=run.chart, units=run.units,
-                      tolerance=run.fit_tolerance, name=run.names.get("step"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", StepToleranceWarning)
+        info = write_step(path, run.V, run.F, r.uv, r.Fuv, r.uv_vertex, chart=run.chart, units=run.units,
+                          tolerance=run.fit_tolerance, name=run.names.get("step"))
+    r.report.setdefault("warnings", []).extend(f"STEP: {w}" for w in info["warnings"])
+    return info
 
 
 def _preview(path: Path, run: Run) -> dict:

@@ -44,6 +44,7 @@ import tempfile
 import time
 import warnings as _warnings
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -220,42 +221,76 @@ def _fit_surface(uv_v: np.ndarray, X_v: np.ndarray, border_v: np.ndarray, fit: _
                  intervals: int) -> dict:
     """Fit a clamped bicubic B-spline to points X_v (k,3) at uv_v (k,2) (the vertices) and to the mesh at the
     ``fit`` samples (edge midpoints and centroids) until the surface is within ``tol`` of the mesh at the vertices,
-    at the fit samples and at the check samples ``checks(bu, bv, faces)`` (:func:`_check_samples`: a lattice in
-    every triangle, between the data, as dense as the knots), starting from ``intervals`` knot intervals along the
-    longer side.
-
-    Each round: where a fitted point deviates by more than ``_SPLIT_AT`` tol, its knot intervals are halved; when
-    none does, the check samples are measured, and the triangles where one deviates join the data with all their
-    check samples (no knot is added then: a surface with knots finer than its data ripples between them, and
-    halving the knots at the check samples made the developable part's deviation grow from 1.7 to 44 tolerances
-    in 7 rounds); the fit ends when no check sample deviates. Points on the border (``border_v`` (k,) for the
-    vertices, ``border`` of the samples) are held to ``_BORDER`` tol and weigh ``_BORDER_WEIGHT`` in the least
-    squares: adjacent faces then meet within 2 ``_BORDER`` tol and are sewn with edges that tight.
+    at the fit samples and at the check samples ``checks(bu, bv)`` (:func:`_check_samples`: a lattice in every
+    triangle, between the data, as dense as the knots), starting from ``intervals`` knot intervals along the longer
+    side (:class:`_SurfaceFit`).
 
     Returns dict: poles (nu,nv,3), bu (a,) and bv (b,) distinct breakpoints, dev (k,) vertex deviations, dev_fit
     and dev_check the deviations at the fit and the (last) check samples, check (those samples), dev_border (the
     max on the border), rounds, within (bool).
     """
-    from heatparam.solvers import Factor, large_system_backend
+    return _SurfaceFit(uv_v, X_v, border_v, fit, checks, tol).run(intervals)
 
-    lo, hi = uv_v.min(0), uv_v.max(0)
-    size = hi - lo
-    pad = 0.01 * max(size.max(), 1e-300)
-    lo, hi, size = lo - pad, hi + pad, size + 2 * pad
-    h = size.max() / intervals
-    bu = np.linspace(lo[0], hi[0], max(1, int(np.ceil(size[0] / h))) + 1)
-    bv = np.linspace(lo[1], hi[1], max(1, int(np.ceil(size[1] / h))) + 1)
-    T = fit.uv.reshape(-1, len(_FIT_POINTS), 2)  # (the fit samples' triangles, from their edge midpoints)
-    diam = 2 * np.linalg.norm(T[:, :3] - np.roll(T[:, :3], 1, axis=1), axis=2).max(axis=1)
-    shortest = float(np.percentile(diam, 10)) / _FINEST if len(diam) else 0.0
-    extra = []  # check samples fitted as data
-    level = {}  # triangle -> the number of check samples it has in the data
-    best = None
-    for rounds in range(1, _MAX_ROUNDS + 1):
-        data = _Samples.joined([fit, *extra])
-        uvd = np.concatenate([uv_v, data.uv])
-        X = np.concatenate([X_v, data.X])
-        border = np.concatenate([border_v, data.border])
+
+class _SurfaceFit:
+    """:func:`_fit_surface` in rounds. Each round solves the penalized least squares (:meth:`solve`); where a fitted
+    point deviates by more than ``_SPLIT_AT`` tol, its knot intervals are halved; when none does, the check samples
+    are measured (:meth:`check`), and the triangles where one deviates join the data with all their check samples.
+    No knot is added for a check sample: a surface with knots finer than its data ripples between them (halving the
+    knots at the check samples made the developable part's deviation grow from 1.7 to 44 tolerances in 7 rounds).
+    The fit ends when no check sample deviates. Points on the border are held to ``_BORDER`` tol and weigh
+    ``_BORDER_WEIGHT``: adjacent faces then meet within 2 ``_BORDER`` tol and are sewn with edges that tight."""
+
+    def __init__(self, uv_v, X_v, border_v, fit: _Samples, checks, tol: float):
+        self.uv_v, self.X_v, self.border_v, self.fit, self.checks, self.tol = uv_v, X_v, border_v, fit, checks, tol
+        T = fit.uv.reshape(-1, len(_FIT_POINTS), 2)  # (the fit samples' triangles, from their edge midpoints)
+        diam = 2 * np.linalg.norm(T[:, :3] - np.roll(T[:, :3], 1, axis=1), axis=2).max(axis=1)
+        self.shortest = float(np.percentile(diam, 10)) / _FINEST if len(diam) else 0.0
+        self.extra = []  # check samples fitted as data
+        self.level = {}  # triangle -> the number of check samples it has in the data
+
+    def knots(self, intervals: int) -> tuple[np.ndarray, np.ndarray]:
+        """The first breakpoints: a uniform grid over the padded parameter rectangle."""
+        lo, hi = self.uv_v.min(0), self.uv_v.max(0)
+        size = hi - lo
+        pad = 0.01 * max(size.max(), 1e-300)
+        lo, hi, size = lo - pad, hi + pad, size + 2 * pad
+        h = size.max() / intervals
+        return (np.linspace(lo[0], hi[0], max(1, int(np.ceil(size[0] / h))) + 1),
+                np.linspace(lo[1], hi[1], max(1, int(np.ceil(size[1] / h))) + 1))
+
+    def run(self, intervals: int) -> dict:
+        bu, bv = self.knots(intervals)
+        best = None
+        for rounds in range(1, _MAX_ROUNDS + 1):
+            best, bad_uv, border = self.solve(bu, bv, rounds)
+            refined = self.halved(bu, bv, bad_uv)
+            if len(refined[0]) + len(refined[1]) == len(bu) + len(bv):  # met, or at the finest knots: check between
+                done, bad_uv = self.check(best)
+                if done:
+                    break
+                if bad_uv is None:  # check samples joined the data: fit again on the same knots
+                    continue
+                refined = self.halved(bu, bv, bad_uv)
+                if len(refined[0]) + len(refined[1]) == len(bu) + len(bv):
+                    break  # at the finest knots already
+            if (len(refined[0]) + DEGREE - 1) * (len(refined[1]) + DEGREE - 1) > MAX_CONTROL_POINTS:
+                break
+            bu, bv = refined
+        return self.finished(best)
+
+    def halved(self, bu, bv, bad_uv):
+        return _halve(bu, bad_uv[:, 0], self.shortest), _halve(bv, bad_uv[:, 1], self.shortest)
+
+    def solve(self, bu: np.ndarray, bv: np.ndarray, rounds: int) -> tuple[dict, np.ndarray, np.ndarray]:
+        """The fit on breakpoints (bu, bv) to the vertices, the fit samples and the check samples joined so far:
+        (the fit's dict, the data points deviating by more than ``_SPLIT_AT`` of their bound, the border mask)."""
+        from heatparam.solvers import Factor, large_system_backend
+
+        data = _Samples.joined([self.fit, *self.extra])
+        uvd = np.concatenate([self.uv_v, data.uv])
+        X = np.concatenate([self.X_v, data.X])
+        border = np.concatenate([self.border_v, data.border])
         tu, tv = _clamped(bu), _clamped(bv)
         nu, nv = len(bu) + DEGREE - 1, len(bv) + DEGREE - 1
         B = _design(uvd, tu, tv)
@@ -266,42 +301,42 @@ def _fit_surface(uv_v: np.ndarray, X_v: np.ndarray, border_v: np.ndarray, fit: _
         backend = large_system_backend(nu * nv, "auto", min_unknowns=10_000)
         C = Factor(M.tocsc(), backend).solve(np.asarray(Bw.T @ X))
         dev_d = np.linalg.norm(B @ C - X, axis=1)
-        k, f = len(uv_v), len(fit.uv)
+        k, f = len(self.uv_v), len(self.fit.uv)
         best = {"poles": C.reshape(nu, nv, 3), "bu": bu, "bv": bv, "dev": dev_d[:k], "dev_fit": dev_d[k: k + f],
                 "dev_check": None, "check": None, "rounds": rounds, "tu": tu, "tv": tv,
-                "dev_border": dev_d[: k + f][np.concatenate([border_v, fit.border])]}
-        bad_uv = uvd[dev_d > _SPLIT_AT * np.where(border, _BORDER * tol, tol)]
-        refined = _halve(bu, bad_uv[:, 0], shortest), _halve(bv, bad_uv[:, 1], shortest)
-        if len(refined[0]) + len(refined[1]) == len(bu) + len(bv):  # met, or at the finest knots: check between
-            check = checks(bu, bv)
-            dev_c = _deviations(C, tu, tv, check.uv, check.X)
-            best["dev_check"], best["check"] = dev_c, check
-            bad = dev_c > _SPLIT_AT * np.where(check.border, _BORDER * tol, tol)
-            if not bad.any():
-                break
-            faces = np.unique(check.face[bad])
-            n = np.bincount(check.face, minlength=faces.max() + 1)[faces]
-            new = np.array([level.get(int(t), 0) < m for t, m in zip(faces, n, strict=True)], dtype=bool)
-            if new.any():  # those triangles' check samples join the data
-                extra.append(_subset(check, np.isin(check.face, faces[new])))
-                level.update({int(t): int(m) for t, m in zip(faces[new], n[new], strict=True)})
-                continue
-            bad_uv = check.uv[bad]
-            refined = _halve(bu, bad_uv[:, 0], shortest), _halve(bv, bad_uv[:, 1], shortest)
-            if len(refined[0]) + len(refined[1]) == len(bu) + len(bv):
-                break  # at the finest knots already
-        if (len(refined[0]) + DEGREE - 1) * (len(refined[1]) + DEGREE - 1) > MAX_CONTROL_POINTS:
-            break
-        bu, bv = refined
-    if best["dev_check"] is None:
-        best["check"] = checks(best["bu"], best["bv"])
-        best["dev_check"] = _deviations(best["poles"].reshape(-1, 3), best["tu"], best["tv"], best["check"].uv,
-                                        best["check"].X)
-    worst = max(best["dev"].max(), best["dev_fit"].max(initial=0.0), best["dev_check"].max(initial=0.0))
-    best["within"] = bool(worst <= tol)
-    best["dev_border"] = float(max(best["dev_border"].max(initial=0.0),
-                                   best["dev_check"][best["check"].border].max(initial=0.0)))
-    return best
+                "dev_border": dev_d[: k + f][np.concatenate([self.border_v, self.fit.border])]}
+        return best, uvd[dev_d > _SPLIT_AT * np.where(border, _BORDER * self.tol, self.tol)], border
+
+    def check(self, best: dict) -> tuple[bool, np.ndarray | None]:
+        """Measure the check samples of ``best``: (no sample deviates?, the deviating samples' uv when none of
+        their triangles could join the data, else None: they joined it)."""
+        tol, check = self.tol, self.checks(best["bu"], best["bv"])
+        dev_c = _deviations(best["poles"].reshape(-1, 3), best["tu"], best["tv"], check.uv, check.X)
+        best["dev_check"], best["check"] = dev_c, check
+        bad = dev_c > _SPLIT_AT * np.where(check.border, _BORDER * tol, tol)
+        if not bad.any():
+            return True, None
+        faces = np.unique(check.face[bad])
+        n = np.bincount(check.face, minlength=faces.max() + 1)[faces]
+        new = np.array([self.level.get(int(t), 0) < m for t, m in zip(faces, n, strict=True)], dtype=bool)
+        if new.any():  # those triangles' check samples join the data
+            self.extra.append(_subset(check, np.isin(check.face, faces[new])))
+            self.level.update({int(t): int(m) for t, m in zip(faces[new], n[new], strict=True)})
+            return False, None
+        return False, check.uv[bad]
+
+    def finished(self, best: dict) -> dict:
+        """``best`` with its check deviations (measured now if the last round did not), ``within`` and the
+        border's max deviation."""
+        if best["dev_check"] is None:
+            best["check"] = self.checks(best["bu"], best["bv"])
+            best["dev_check"] = _deviations(best["poles"].reshape(-1, 3), best["tu"], best["tv"], best["check"].uv,
+                                            best["check"].X)
+        worst = max(best["dev"].max(), best["dev_fit"].max(initial=0.0), best["dev_check"].max(initial=0.0))
+        best["within"] = bool(worst <= self.tol)
+        best["dev_border"] = float(max(best["dev_border"].max(initial=0.0),
+                                       best["dev_check"][best["check"].border].max(initial=0.0)))
+        return best
 
 
 # ------------------------------------------------------------------------------------------------------ topology
@@ -552,92 +587,48 @@ def write_step(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.nda
     path : output ``.step``/``.stp``; written atomically (temporary file beside it, renamed on success).
     name : the file name recorded in the STEP header and product (default: ``path``'s); the writing contract
         writes to a temporary and passes the final name, so the same map gives the same bytes.
-    V : (n,3) float64 vertices. F : (m,3) int64 triangles.
-    uv : (k,2) float64 the map (``Result.uv``). Fuv : (m,3) int64 rows of uv at each face's corners
-        (``Result.Fuv``; None = F). uv_vertex : (k,) int64 the vertex of each uv row (``Result.uv_vertex``; None =
-        arange(k)).
+    V : (n,3) float64 vertices. F : (m,3) int64 triangles. uv : (k,2) float64 the map (``Result.uv``). Fuv : (m,3)
+        rows of uv at each face's corners (None = F). uv_vertex : (k,) the vertex of each uv row (None = arange(k)).
     chart : (m,) int chart id per face, or None (one chart).
-    tolerance : max deviation of the surface from the mesh vertices, in model units; None = 0.1% of the bounding
+    tolerance : max deviation of the surface from the mesh, both ways, in model units; None = 0.1% of the bounding
         box diagonal of V.
     units : length unit the coordinates are in and the file declares: ``mm``, ``cm``, ``m``, ``in``, ``ft``.
 
     Returns
     -------
-    dict, the fit report:
-
-    - ``tolerance``, ``units``, ``degree``, ``faces``, ``sewn``, ``valid``, ``shells``, ``free_edges``,
-      ``area_mesh``, ``area_faces``, ``creases`` (crease edges found), ``tolerance_splits`` (faces split in two
-      because their fit missed the tolerance), ``control_points`` (total), ``seconds``;
-    - ``max_deviation``: the worst of ``max_vertex_deviation`` (mesh vertices to the surface, ``|S(uv_i) - V_i|``)
-      and ``max_surface_deviation`` (surface to the mesh, ``|S(uv) - X(uv)|`` at the edge midpoints, the centroid
-      and 12 more points of every triangle, ``X`` the mesh's point at ``uv`` through the map); both are upper
-      bounds of the distances; ``rms_deviation`` (at the vertices); ``within_tolerance`` (every face);
-    - ``step_faces``: per STEP face, in the file's order, ``face``, ``chart``, ``triangles``, ``vertices``,
-      ``control_points`` [nu, nv], ``degree``, ``knot_rounds``, ``max_deviation``, ``max_vertex_deviation``,
-      ``max_surface_deviation``, ``deviation_over_tolerance``, ``worst_at`` [x, y, z] (where the max is),
-      ``within_tolerance``, ``valid`` (BRepCheck on the face);
-    - ``charts``: per chart, ``chart``, ``faces``, ``vertices``, ``control_points`` (total), ``degree``,
-      ``max_deviation``, ``within_tolerance``;
-    - ``warnings``: list of str, one per face off the tolerance (where, and by how much), per invalid face, for an
-      invalid shape, for free edges of a closed mesh and for faces left unsewn. Each is also issued as a
-      :class:`StepToleranceWarning` (``warnings.warn``) after the file is written, so that a caller that ignores
-      the report still shows it; a caller that prints the list itself can filter that category.
+    dict, the fit report (docs/formats.md, "STEP"): ``tolerance``, ``faces``, ``sewn``, ``valid`` (as read back),
+    ``shells``, ``free_edges``, ``area_mesh``, ``area_faces``, ``creases``, ``tolerance_splits``; the achieved
+    deviations both ways, ``max_vertex_deviation`` (``|S(uv_i) - V_i|``) and ``max_surface_deviation`` (``|S(uv) -
+    X(uv)|`` at points inside every triangle; both upper bounds of the distances), ``max_deviation``,
+    ``rms_deviation``, ``within_tolerance``; ``step_faces`` (per face: chart, size, deviations, ``worst_at``,
+    ``within_tolerance``, ``valid``), ``charts``; ``warnings``: one line per face off the tolerance (where, by how
+    much), invalid face or shape, free edges of a closed mesh, faces left unsewn, each also issued as a
+    :class:`StepToleranceWarning` (a caller that prints the list itself can filter that category).
     """
     t0 = time.perf_counter()
     _require_ocp()
     V, F, uv, Fuv, uv_vertex, chart, tol = _checked_inputs(V, F, uv, Fuv, uv_vertex, chart, tolerance, units)
-    X_row = V[uv_vertex]
     region, creases = _regions(V, F, Fuv, uv_vertex, chart, tol)
     diag = float(np.linalg.norm(V.max(0) - V.min(0)))
-    faces, reports, notes, devs = [], [], [], []
-    todo = [(np.flatnonzero(region == r), 0) for r in range(region.max() + 1)]
-    splits = 0
-    while todo:
-        fr, depth = todo.pop(0)
-        face, report, dev, off = _region_face(len(faces), int(chart[fr[0]]), Fuv[fr], uv, X_row, tol)
-        if not report["within_tolerance"] and len(fr) > 1 and depth < _MAX_SPLITS:
-            parts = _split(uv, Fuv[fr], off if depth == 0 else None)
-            todo[:0] = [(fr[p], depth + 1) for p in parts]
-            splits += 1
-            continue
-        report["face"] = len(faces)
-        faces.append(face)
-        reports.append(report)
-        devs.append(dev)
-        if not report["within_tolerance"]:
-            notes.append(_miss(report, tol, diag, units))
-        if not report["valid"]:
-            notes.append(f"STEP face {report['face']} (chart {report['chart']}): OpenCascade's BRepCheck reports "
-                         "it invalid")
+    fitted = _fitted_faces(region, chart, Fuv, uv, V[uv_vertex], tol, diag, units)
+    faces, reports, notes = fitted.faces, fitted.reports, fitted.notes
     # two faces' borders are each within max_border_deviation of the mesh: they meet within twice that
     gap = 2.0 * max(f["max_border_deviation"] for f in reports)
     sewing = float(np.clip(1.05 * gap, 0.01 * tol, 2.0 * tol))
-    shape, sewn = _assemble(faces, sewing, notes)
-    e1, e2 = V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]
-    area_mesh = float(0.5 * np.linalg.norm(np.cross(e1, e2), axis=1).sum())
-    area_faces = _area(shape)
-    # the file declares the sewing tolerance as its uncertainty: with the default (the least tolerance of the shape,
-    # 1e-7) OpenCascade's reader filled the gaps of up to 2 _BORDER tol at every sewn vertex with tiny edges, and
-    # the face of two sewn charts read back could not be meshed (BRepMesh: no triangle, BRepCheck: invalid)
-    _write_shape(shape, Path(path), UNITS[units][0], name, precision=sewing)
-    if sewn and not _valid(read_step(path)[0]):  # what a reader gets: the cow's 97 sewn faces read back invalid
-        shape, sewn = _compound(faces), False
-        _write_shape(shape, Path(path), UNITS[units][0], name, precision=sewing)
-        notes.append("the sewn faces read back invalid: they are written unjoined")
-    valid = _valid(read_step(path)[0])  # as read back
-    if not valid:
-        notes.append("the STEP file reads back invalid (OpenCascade's BRepCheck)")
+    shape, sewn, valid = _written(faces, Path(path), units, name, sewing, notes)
     shells, free = _topology(shape)
     if free and _closed(F):
         notes.append(f"the mesh is closed but the STEP shape has {free} free edges (not sewn shut)")
     for note in notes:
         _warnings.warn(note, StepToleranceWarning, stacklevel=2)
-    dev = np.concatenate(devs)
-    worst = max(reports, key=lambda f: f["max_deviation"])
+    e1, e2 = V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]
+    dev = np.concatenate(fitted.devs)
     return {
         "tolerance": tol, "units": units, "degree": [DEGREE, DEGREE], "faces": len(faces), "sewn": sewn,
-        "valid": valid, "shells": shells, "free_edges": free, "area_mesh": area_mesh, "area_faces": area_faces,
-        "creases": creases, "tolerance_splits": splits, "max_deviation": worst["max_deviation"],
+        "valid": valid, "shells": shells, "free_edges": free,
+        "area_mesh": float(0.5 * np.linalg.norm(np.cross(e1, e2), axis=1).sum()), "area_faces": _area(shape),
+        "creases": creases, "tolerance_splits": fitted.splits,
+        "max_deviation": max(f["max_deviation"] for f in reports),
         "max_vertex_deviation": max(f["max_vertex_deviation"] for f in reports),
         "max_surface_deviation": max(f["max_surface_deviation"] for f in reports),
         "rms_deviation": float(np.sqrt(np.mean(dev**2))),
@@ -646,6 +637,66 @@ def write_step(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.nda
         "seconds": time.perf_counter() - t0, "step_faces": reports, "charts": _chart_reports(reports),
         "warnings": notes,
     }
+
+
+class _Fitted(NamedTuple):
+    """The STEP faces of a map: OpenCascade faces, their reports, their vertex deviations, the warnings so far and
+    how many faces were split in two because their fit missed the tolerance."""
+
+    faces: list
+    reports: list[dict]
+    devs: list[np.ndarray]
+    notes: list[str]
+    splits: int
+
+
+def _fitted_faces(region: np.ndarray, chart: np.ndarray, Fuv: np.ndarray, uv: np.ndarray, X_row: np.ndarray,
+                  tol: float, diag: float, units: str) -> _Fitted:
+    """One fitted, trimmed face per region (:func:`_region_face`); a region whose fit misses the tolerance is split
+    (:func:`_split`, its failing triangles carved out first) up to ``_MAX_SPLITS`` deep, and what still misses
+    is reported in the notes."""
+    out = _Fitted([], [], [], [], 0)
+    todo = [(np.flatnonzero(region == r), 0) for r in range(region.max() + 1)]
+    splits = 0
+    while todo:
+        fr, depth = todo.pop(0)
+        face, report, dev, off = _region_face(len(out.faces), int(chart[fr[0]]), Fuv[fr], uv, X_row, tol)
+        if not report["within_tolerance"] and len(fr) > 1 and depth < _MAX_SPLITS:
+            parts = _split(uv, Fuv[fr], off if depth == 0 else None)
+            todo[:0] = [(fr[p], depth + 1) for p in parts]
+            splits += 1
+            continue
+        report["face"] = len(out.faces)
+        out.faces.append(face)
+        out.reports.append(report)
+        out.devs.append(dev)
+        if not report["within_tolerance"]:
+            out.notes.append(_miss(report, tol, diag, units))
+        if not report["valid"]:
+            out.notes.append(f"STEP face {report['face']} (chart {report['chart']}): OpenCascade's BRepCheck reports "
+                             "it invalid")
+    return out._replace(splits=splits)
+
+
+def _written(faces: list, path: Path, units: str, name: str | None, sewing: float, notes: list[str]
+             ) -> tuple[object, bool, bool]:
+    """Assemble the faces (sewn where they share borders), write them and read the file back: (the shape written,
+    sewn?, valid as read back); what went wrong goes into ``notes``.
+
+    The file declares the sewing tolerance as its uncertainty: with the default (the least tolerance of the shape,
+    1e-7) OpenCascade's reader filled the gaps of up to 2 ``_BORDER`` tol at every sewn vertex with tiny edges, and
+    the face of two sewn charts read back could not be meshed. Sewn faces that read back invalid (the cow's 97) are
+    written again unjoined."""
+    shape, sewn = _assemble(faces, sewing, notes)
+    _write_shape(shape, path, UNITS[units][0], name, precision=sewing)
+    if sewn and not _valid(read_step(path)[0]):
+        shape, sewn = _compound(faces), False
+        _write_shape(shape, path, UNITS[units][0], name, precision=sewing)
+        notes.append("the sewn faces read back invalid: they are written unjoined")
+    valid = _valid(read_step(path)[0])
+    if not valid:
+        notes.append("the STEP file reads back invalid (OpenCascade's BRepCheck)")
+    return shape, sewn, valid
 
 
 class StepToleranceWarning(UserWarning):
