@@ -5,6 +5,7 @@ Each function returns plain arrays ``V (n,3) float64, F (m,3) int64`` (counter-c
 
 from __future__ import annotations
 
+import re
 import struct
 
 import numpy as np
@@ -118,3 +119,17 @@ def ply_bytes(V: np.ndarray, faces: list | None = None, strips: list | None = No
     body += b"".join(struct.pack(e + f"B{len(r) - 1 - extra}i" + ("B" if extra else ""), *r) for r in lists[:nf])
     body += b"".join(struct.pack(e + f"i{len(s)}i", len(s), *s) for s in strips or [])
     return head + body
+
+
+#: what no message may show (issue 45): Python's None, an object repr or address, an exception's class name, a nan
+#: where a number belongs, a traceback
+LEAKED = re.compile(r"\bNone\b|<[A-Za-z_][\w.]*( object|:| at 0x|>)|0x[0-9a-f]{6,}|\b\w*(Error|Exception|Warning)\b"
+                    r"|\bnan\b|Traceback")
+
+
+def leaked(message: str, *given) -> list[str]:
+    """The parts of ``message`` that no message may show (LEAKED), once the values a user gave (echoed back as given:
+    "got nan") are taken out."""
+    for g in given:
+        message = message.replace(repr(g), "").replace(str(g), "")
+    return [m.group(0) for m in LEAKED.finditer(message)]

@@ -24,7 +24,7 @@ from heatparam import formats, interrupt
 from heatparam.cli import main
 
 sys.path.insert(0, str(Path(__file__).parent))
-from hostile import degrade, thin_limbs_disk  # noqa: E402
+from hostile import degrade, leaked, ply_bytes, split_edge, thin_limbs_disk  # noqa: E402
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 #: texts a reader error must never show: Python exception texts and module names
@@ -470,3 +470,120 @@ def test_ctrl_c_at_any_moment_is_clean(tmp_path):
         target = out if k % 2 else existing  # this run's output: absent, or the old content kept
         assert (not target.exists() if k % 2 else target.read_text() == "previous content\n"), (d, p.returncode, err)
         assert not list(tmp_path.glob(".*.tmp"))
+
+
+# ----------------------------------------------------------------------------------------------------------
+# every refusal in words (issue 45): no None, no repr, no exception class, no nan; one line that says what to do
+# ----------------------------------------------------------------------------------------------------------
+LINE = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]])  # a mesh of zero-area faces only
+LINE_F = np.array([[0, 2, 1], [1, 2, 3]])
+V_NAN = V4.copy()
+V_NAN[3, 1] = np.nan
+F_OUT = F4.copy()
+F_OUT[2, 1] = 99
+WRITERS = {
+    "obj": lambda V, F: obj_text(V, F).encode(),
+    "off": lambda V, F: off_text(V, F).encode(),
+    "stl": lambda V, F: stl_binary(V, F),
+    "ply": lambda V, F: ply_bytes(V, F.tolist()),
+    "be.ply": lambda V, F: ply_bytes(V, F.tolist(), fmt="binary_big_endian"),
+}
+
+
+def _bad_files():
+    """(name, bytes) of every kind of bad file, in every format: empty, truncated, junk, junk after a header, no
+    faces, indices out of range, NaN coordinates, zero-area faces only, wrong counts."""
+    for fmt, make in WRITERS.items():
+        good = make(V4, F4)
+        yield f"empty.{fmt}", b""
+        yield f"truncated.{fmt}", good[:len(good) // 2]
+        yield f"junk.{fmt}", JUNK
+        yield f"header_then_junk.{fmt}", good[:60] + JUNK
+        yield f"nan.{fmt}", make(V_NAN, F4)
+        yield f"zero_area_only.{fmt}", make(LINE, LINE_F)
+        if fmt != "stl":  # (an STL has no vertices apart from its triangles)
+            yield f"point_cloud.{fmt}", make(V4, np.zeros((0, 3), dtype=np.int64))
+            yield f"out_of_range.{fmt}", make(V4, F_OUT)
+    yield "counts.off", off_text().replace("OFF\n16 18", "OFF\n16 30").encode()
+    yield "counts.ply", ply_bytes(V4, F4.tolist(), fmt="binary_little_endian").replace(b"face 18", b"face 40")
+    yield "counts_ascii.ply", ply_bytes(V4, F4.tolist()).replace(b"vertex 16", b"vertex 20")
+    yield "junk.glb", JUNK
+    yield "empty.glb", b""
+
+
+BAD_FILES = dict(_bad_files())
+
+
+@pytest.mark.parametrize("name", sorted(BAD_FILES))
+def test_every_bad_file_is_refused_in_words(tmp_path, capsys, name):
+    code, err, out = run(tmp_path, capsys, name, BAD_FILES[name])
+    assert_refused(code, err, out, "")
+    assert not leaked(err), err
+    if name.startswith("point_cloud"):
+        assert err.endswith("no faces: a point cloud; mesh it first, e.g. by Poisson reconstruction\n"), err
+
+
+@pytest.mark.parametrize("fmt", ["binary_little_endian", "binary_big_endian"])
+def test_tristrip_ply_unwraps(tmp_path, capsys, fmt):
+    """A strip PLY with -1 restarts (rows of a grid) flattens like the same faces."""
+    strip = [v for j in range(3) for v in [*(x for i in range(4) for x in ((j + 1) * 4 + i, j * 4 + i)), -1]][:-1]
+    code, err, out = run(tmp_path, capsys, "strips.ply", ply_bytes(V4, strips=[strip], fmt=fmt))
+    assert code == 0, err
+    Vo, Fo, UV, _ = formats.load_uv_obj(out)
+    assert len(Fo) == len(F4) and np.isfinite(UV).all() and np.allclose(Vo, V4)
+
+
+def _closed_with_zero_area_face():
+    from heatparam import datasets
+
+    return split_edge(*datasets.closed_cube(n=3), 4)
+
+
+@pytest.mark.parametrize("case", ["repeat", "quads", "float_index", "words", "no_faces", "none_faces", "inf",
+                                  "zero_area_only", "zero_area_closed"])
+def test_every_array_refusal_is_in_words(case):
+    import heatparam
+
+    V, F = {"repeat": (V4, np.vstack([F4, [[0, 0, 1]]])), "quads": (V4, QUADS), "float_index": (V4, F4 + 0.5),
+            "words": (np.full((4, 3), "x"), F4[:2]), "no_faces": (V4, np.zeros((0, 3), dtype=int)),
+            "none_faces": (V4, None), "inf": (np.where(np.arange(16)[:, None] == 2, np.inf, V4), F4),
+            "zero_area_only": (LINE, LINE_F), "zero_area_closed": (LINE, np.array([[0, 1, 2], [0, 2, 1]]))}[case]
+    with pytest.raises(heatparam.HeatparamError) as exc:
+        heatparam.parameterize(V, F)
+    msg = str(exc.value)
+    assert "\n" not in msg and " — " in msg and not leaked(msg), msg  # what is wrong — what to do
+
+
+def test_zero_area_faces_unwrap_and_their_warnings_are_in_words(tmp_path, capsys):
+    import json
+
+    V, F = _closed_with_zero_area_face()
+    code, err, out = run(tmp_path, capsys, "zero.obj", obj_text(V, F), "--report", str(tmp_path / "r.json"))
+    assert code == 0, err
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert rep["mesh"]["zero_area_faces"] == 1 and rep["metrics"]["flips"] == 0
+    assert not [w for w in rep["warnings"] if leaked(w)], rep["warnings"]
+
+
+@pytest.mark.parametrize("name,value", [("refine", "bogus"), ("max_distortion", 0.5), ("max_distortion", float("nan")),
+                                        ("pack", "x"), ("padding", -1), ("seed", 1.5), ("fill", None),
+                                        ("t_coef", float("nan")), ("time_step", "bogus"), ("nonexistent", 1)])
+def test_every_bad_option_value_is_refused_in_words(tmp_path, capsys, name, value):
+    """Through the API (the value echoed as given, nothing else of Python's) and, where it can be typed, the CLI."""
+    import heatparam
+
+    with pytest.raises(heatparam.HeatparamError) as exc:
+        heatparam.parameterize(V4, F4, **{name: value})
+    assert "\n" not in str(exc.value) and not leaked(str(exc.value), value), exc.value
+    if value is None or name == "nonexistent":
+        return
+    code, err, out = run(tmp_path, capsys, "g.obj", obj_text(), f"--{name.replace('_', '-')}", str(value))
+    assert_refused(code, err, out, "")
+    assert not leaked(err, value), err
+
+
+def test_a_folder_as_input_says_so(tmp_path, capsys):
+    out = tmp_path / "out.obj"
+    out.write_text("previous content\n")
+    code = main(["unwrap", str(tmp_path), "-o", str(out), "--quiet"])
+    assert_refused(code, capsys.readouterr().err, out, "a folder, not a mesh file")

@@ -44,6 +44,8 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     Raises HeatparamError (one line) for a missing, unreadable, unsupported or empty file.
     """
     p = Path(path)
+    if p.is_dir():
+        raise HeatparamError(f"cannot read {p}: a folder, not a mesh file (heatparam batch flattens a folder)")
     if not p.is_file():
         raise HeatparamError(f"cannot read {p}: no such file")
     suffix = p.suffix.lower()

@@ -114,12 +114,30 @@ def validate_mesh(V: np.ndarray, F: np.ndarray, flatten: bool = True) -> MeshInf
     return info
 
 
+def as_arrays(V, F) -> tuple[np.ndarray, np.ndarray]:
+    """The input as contiguous V float64 and F int64 (no copy where it is so already), or a one-line MeshError:
+    coordinates that are not numbers, face indices that are not whole numbers (a cast would truncate 1.5 to 1)."""
+    try:
+        V = np.ascontiguousarray(V, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise MeshError("the vertex coordinates are not numbers — pass an (n,3) array of floats") from None
+    try:
+        Fa = np.asarray(F)
+        if Fa.dtype.kind in "fc" and not np.array_equal(Fa, np.round(Fa.real)):
+            raise ValueError
+        return V, np.ascontiguousarray(Fa, dtype=np.int64)
+    except (TypeError, ValueError, OverflowError):
+        raise MeshError("the face indices are not whole numbers — pass an (m,3) array of vertex indices") from None
+
+
 def check_arrays(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Shapes, finite coordinates, indices in range, no face repeating a vertex."""
     V = np.asarray(V)
     F = np.asarray(F)
     if V.ndim != 2 or V.shape[1] != 3 or len(V) < 3:
         raise MeshError(f"expected at least 3 vertices with 3 coordinates, got array of shape {V.shape}")
+    if F.ndim == 2 and F.shape[1] != 3 and len(F):
+        raise MeshError(f"faces must be triangles, an (m,3) array; got shape {F.shape} — triangulate them first")
     if F.ndim != 2 or F.shape[1] != 3 or len(F) == 0:
         raise MeshError("the mesh has no triangles — check that the file holds faces, not only points")
     bad = ~np.isfinite(V).all(axis=1)

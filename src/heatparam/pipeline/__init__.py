@@ -26,6 +26,7 @@ import numpy as np
 from heatparam.errors import HeatparamError, TopologyError
 from heatparam.heat import check_time_step
 from heatparam.memory import require
+from heatparam.mesh.validate import as_arrays
 from heatparam.options import Options, make_options
 from heatparam.pipeline.atlas_stage import atlas_result
 from heatparam.pipeline.heat_stage import FillSurface, Layout, decide_fill, mds_map
@@ -72,8 +73,7 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     (0, 1.0)
     """
     opts = make_options(options, **kwargs)
-    V = np.ascontiguousarray(V, dtype=np.float64)
-    F = np.ascontiguousarray(F, dtype=np.int64)
+    V, F = as_arrays(V, F)
     prog = Progress(opts.progress)
     if opts.max_distortion:  # a bound asked for: segmented into charts that meet it (a disk too)
         return _atlas(V, F, opts, prog, "max_distortion was given")
@@ -88,8 +88,7 @@ def parameterize_disk(V: np.ndarray, F: np.ndarray, options: Options | None = No
     several parts, non-manifold) raises :class:`~heatparam.errors.TopologyError` instead of becoming an atlas. The
     atlas stage flattens each of its charts with it."""
     opts = make_options(options, **kwargs)
-    V = np.ascontiguousarray(V, dtype=np.float64)
-    F = np.ascontiguousarray(F, dtype=np.int64)
+    V, F = as_arrays(V, F)
     return _disk(V, F, opts, Progress(opts.progress))
 
 

@@ -40,6 +40,7 @@ from heatparam.atlas.segment import proxy_bound, segment
 from heatparam.errors import HeatparamError
 from heatparam.mesh import validate_mesh
 from heatparam.mesh.topology import degenerate_faces
+from heatparam.mesh.validate import as_arrays
 from heatparam.options import Options, make_options
 from heatparam.pipeline.report import Result, envelope
 from heatparam.refine import RefineParams
@@ -105,8 +106,7 @@ def atlas(V: np.ndarray, F: np.ndarray, flatten_disk: DiskFlattener, *, max_dist
     pipeline_options : :class:`~heatparam.options.Options` fields for every chart's flattening.
     """
     t0 = time.perf_counter()
-    V = np.ascontiguousarray(V, dtype=np.float64)
-    F = np.ascontiguousarray(F, dtype=np.int64)
+    V, F = as_arrays(V, F)
     if pack not in ("scale", "texture"):
         raise HeatparamError(f"pack must be 'scale' or 'texture', got {pack!r}")
     if max_distortion is not None and not max_distortion > 1.0:
