@@ -9,12 +9,13 @@ import sys
 import time
 
 import numpy as np
+import pytest
 
 import heatparam
 from heatparam import datasets
 from heatparam.progress import Progress, stderr_is_tty
 
-LINE = re.compile(r"^heatparam: (?P<stage>[a-z][a-z ]*): (?P<s>\d+\.\d\d) s$")
+LINE = re.compile(r"^heatparam: (?P<stage>[a-z][a-z ]*)(?: \((?P<run>[a-z ,]+)\))?: (?P<s>\d+\.\d\d) s$")
 
 
 class FakeTTY(io.StringIO):
@@ -79,3 +80,59 @@ def test_pipeline_log_lines_match_its_timings(monkeypatch):
     lines = [x for x in out.splitlines() if not x.startswith("heatparam: warning:")]
     assert all(LINE.match(x) for x in lines), lines
     assert {LINE.match(x)["stage"] for x in lines} == set(report["timings_s"])
+
+
+def test_passes_and_details_name_each_run(monkeypatch):
+    """A stage run twice says which run it is (its detail, the pass it runs in); its timing stays keyed by the
+    bare name, summed."""
+    err = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", err)
+    prog = Progress(enabled=True)
+    with prog.in_pass("map without seams"):
+        with prog.stage("refine"):
+            pass
+        with prog.stage("geodesics", "landmarks"):
+            pass
+    with prog.stage("refine"):
+        pass
+    lines = err.getvalue().splitlines()
+    assert [(LINE.match(x)["stage"], LINE.match(x)["run"]) for x in lines] == [
+        ("refine", "map without seams"), ("geodesics", "landmarks, map without seams"), ("refine", None)]
+    assert set(prog.timings) == {"refine", "geodesics"} and prog.pass_name == ""
+
+
+def _stage_lines(out: str) -> list[re.Match]:
+    lines = [x for x in out.splitlines() if not x.startswith("heatparam: warning:")]
+    assert all(LINE.match(x) for x in lines), lines
+    return [LINE.match(x) for x in lines]
+
+
+def test_seams_stage_log_names_its_passes(monkeypatch):
+    """A part whose holes are cut open (seams holes): the map without seams and the one with seams each get their
+    lines, no line is repeated, and the lines add up to the report's timings."""
+    s = datasets.cylinder_with_holes(h=0.09)
+    err = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", err)
+    _, report = heatparam.parameterize(s.V, s.F, progress=True, seams="holes")
+    lines = _stage_lines(err.getvalue())
+    shown = [(m["stage"], m["run"]) for m in lines]
+    assert len(shown) == len(set(shown)), shown
+    assert ("refine", "map without seams") in shown and ("refine", "map with seams") in shown
+    assert ("seams", "cut open") in shown
+    printed = sum(float(m["s"]) for m in lines)
+    assert printed == pytest.approx(sum(report["timings_s"].values()), abs=0.01 * len(lines))
+
+
+def test_atlas_stage_times_add_up(monkeypatch):
+    """An atlas (a closed mesh): the report times exactly the stages printed (the disk check, the atlas), so the
+    atlas line is never more than the total."""
+    s = datasets.closed_cube()
+    V, F = (s.V, s.F) if hasattr(s, "V") else s[:2]
+    err = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", err)
+    _, report = heatparam.parameterize(V, F, progress=True)
+    lines = _stage_lines(err.getvalue())
+    assert {m["stage"] for m in lines} == set(report["timings_s"]) == {"validate", "atlas"}
+    assert report["timings_s"]["atlas"] <= sum(report["timings_s"].values())
+    printed = sum(float(m["s"]) for m in lines)
+    assert printed == pytest.approx(sum(report["timings_s"].values()), abs=0.01 * len(lines))

@@ -16,12 +16,10 @@ import textwrap
 from pathlib import Path
 
 from heatparam.errors import HeatparamError
-from heatparam.options import GROUPS, Option, check_value, cli_options, make_options, to_cli_terms
+from heatparam.options import GROUPS, UNITS, Option, check_value, cli_options, make_options, to_cli_terms
 from heatparam.version import __version__
 
 EXIT_BAD_INPUT = 2
-#: the model units the outputs can declare (``formats.units``; listed here so that --help loads nothing)
-UNITS = ("mm", "cm", "m", "in", "ft")
 #: options shared by ``unwrap`` and ``geodesics`` (the heat method's own)
 HEAT_OPTIONS = ("time_step", "t_coef", "solver")
 
@@ -194,8 +192,8 @@ def _add_unwrap(sub) -> None:
                    help=f"output, repeatable: {' '.join(BY_NAME[f].suffixes[0] for f in map_formats())}")
     g.add_argument("--report", metavar="R.json", help="write the JSON report (parameters, timings, metrics)")
     g.add_argument("--preview", metavar="P.png", help="write a PNG: the layout by distortion + 3D view")
-    g.add_argument("--units", choices=UNITS, default="mm",
-                   help="the model's units, stated in every output (default: %(default)s)")
+    g.add_argument("--units", choices=UNITS, help="the model's units, stated in every output and message "
+                   "(default: mm, with a warning when the part would be under 10 mm or over 100 m across)")
     g.add_argument("--sheet", metavar="WxH", help="DXF/SVG: charts on sheets of this size")
     g.add_argument("--strain-map", action="store_true", help="SVG: faces coloured by distortion, with a legend")
     g.add_argument("--fit-tolerance", type=_positive, metavar="TOL",

@@ -61,7 +61,7 @@ def run(outdir: Path, quiet: bool = False) -> tuple[object, dict]:
     from heatparam.unwrap import plan, write_outputs
 
     shape = datasets.noisy_scan_part(noise=NOISE, seed=SEED)
-    result = parameterize(shape.V, shape.F, progress=not quiet)
+    result = parameterize(shape.V, shape.F, progress=not quiet, unit_name=UNITS)
     uv, report = result
     report["input"] = f"generated:{shape.name}"
     report["metrics"]["layout_error_rel"] = metrics.layout_error(uv, shape.uv_true[result.uv_vertex])

@@ -26,6 +26,8 @@ REFINE_MODES = ("none", "sd")
 MASS_KINDS = ("lumped", "consistent")
 TIME_STEPS = ("default", "paper")
 BACKENDS = ("auto", "cholespy", "scipy", "pardiso")
+#: the model units the outputs can declare (``formats.units``; listed here so that --help loads nothing)
+UNITS = ("mm", "cm", "m", "in", "ft")
 
 #: With ``mds_start auto`` the heat geodesics and MDS are skipped when the conformal start is bijective and its energy
 #: exceeds an isometry's (1) by at most this: no start can be better by more than this, and the polish converges
@@ -184,6 +186,10 @@ OPTIONS: tuple[Option, ...] = (
            flag="--padding", metavar="PX", short="gutter between charts, pixels", group="atlas"),
     Option("resolution", 1024, "int", "atlas, pack texture: the texture's size in pixels (for --padding)", low=16,
            high=2**20, flag="--resolution", metavar="PX", short="texture size in pixels", group="atlas"),
+    Option("unit_name", "model units", "choice", "the model's length unit, a name only (nothing is scaled): the "
+           "lengths in messages carry it (the seams warning). heatparam unwrap sets it from --units (default mm, with "
+           "a warning when the part would be under 10 mm or over 100 m across in mm)", ("model units", *UNITS),
+           short="name of the model's length unit in messages", group="run"),
     Option("progress", False, "bool", "show stage messages and progress bars on stderr (the CLI: unless --quiet)",
            short="stage messages and progress bars on stderr", group="run"),
 )

@@ -38,7 +38,7 @@ def write_outputs(V, F, result, plans, *, units: str = DEFAULT_UNITS, sheet=None
     report = result.report
     report["units"] = units
     needs_pattern = any(BY_NAME[pl.format].pattern for pl in plans)
-    run = Run(V, F, result, units, pattern=_pattern(V, F, result, sheet=sheet) if needs_pattern else None,
+    run = Run(V, F, result, units, pattern=_pattern(V, F, result, sheet=sheet, units=units) if needs_pattern else None,
               strain_map=strain_map, fit_tolerance=fit_tolerance, names={pl.format: pl.path.name for pl in plans})
     written: list[dict] = []
 
@@ -64,13 +64,13 @@ def write_outputs(V, F, result, plans, *, units: str = DEFAULT_UNITS, sheet=None
               f"{sum(report['timings_s'].values()):.2f} s", file=sys.stderr)
 
 
-def _pattern(V, F, result, *, sheet):
+def _pattern(V, F, result, *, sheet, units: str):
     """The flat pattern (charts, loops, seams, laid out) that the DXF and SVG draw; its summary goes into the
     report."""
     from heatparam.formats.pattern import build_pattern, layout_charts
 
     pattern = layout_charts(build_pattern(V, F, result.uv, result.Fuv, result.uv_vertex,
-                                          chart=getattr(result, "chart", None)), sheet=sheet)
+                                          chart=getattr(result, "chart", None)), sheet=sheet, units=units)
     result.report["pattern"] = {
         "charts": len(pattern.charts), "sheets": len(pattern.sheets), "seams": len(pattern.seams) // 2,
         "loops": [{"chart": c.id, "kind": lp.kind, "length_3d": lp.length_3d, "length_uv": lp.length_uv,
@@ -80,7 +80,7 @@ def _pattern(V, F, result, *, sheet):
 
 
 def unwrap_file(input, outputs, *, report=None, preview=None, options=None, quiet: bool = True,
-                units: str = DEFAULT_UNITS, sheet=None, strain_map: bool = False, fit_tolerance: float | None = None):
+                units: str | None = None, sheet=None, strain_map: bool = False, fit_tolerance: float | None = None):
     """What ``heatparam unwrap`` does, as a function: check every output path, load ``input``, flatten it, write
     every output (all or nothing).
 
@@ -91,7 +91,10 @@ def unwrap_file(input, outputs, *, report=None, preview=None, options=None, quie
     report, preview : optional JSON report and PNG preview paths.
     options : pipeline :class:`~heatparam.options.Options` (progress on stderr per ``options.progress``).
     quiet : do not print the one-line summary on stderr.
-    units, sheet, strain_map, fit_tolerance : as ``heatparam unwrap``'s flags of the same names.
+    units : the model's unit, as ``--units``; None: ``options.unit_name`` if set, else mm assumed (with a warning when
+        the part is implausibly sized in mm: ``formats.units.assumed_units_warning``; the report's
+        ``units_assumed``). It becomes ``options.unit_name``, which the pipeline's messages name.
+    sheet, strain_map, fit_tolerance : as ``heatparam unwrap``'s flags of the same names.
 
     Returns
     -------
@@ -105,7 +108,7 @@ def unwrap_file(input, outputs, *, report=None, preview=None, options=None, quie
                           strain_map=strain_map, fit_tolerance=fit_tolerance)
 
 
-def unwrap_planned(input, plans, *, options=None, quiet: bool = True, units: str = DEFAULT_UNITS, sheet=None,
+def unwrap_planned(input, plans, *, options=None, quiet: bool = True, units: str | None = None, sheet=None,
                    strain_map: bool = False, fit_tolerance: float | None = None):
     """:func:`unwrap_file` with its outputs already checked (``plans`` from :func:`plan`)."""
     from heatparam.formats import load_mesh
@@ -113,8 +116,25 @@ def unwrap_planned(input, plans, *, options=None, quiet: bool = True, units: str
     from heatparam.pipeline import parameterize
 
     V, F = load_mesh(input)
-    result = parameterize(V, F, make_options(options))
+    opts = make_options(options)
+    given = units or (opts.unit_name if opts.unit_name != "model units" else None)
+    opts = opts.replace(unit_name=given or DEFAULT_UNITS)  # the unit the pipeline's messages name
+    note = None if given else _assumed_units(V, F)
+    if note and opts.progress:
+        print(f"heatparam: warning: {note}", file=sys.stderr)
+    result = parameterize(V, F, opts)
     result.report["input"] = str(input)
-    write_outputs(V, F, result, plans, units=units, sheet=sheet, strain_map=strain_map, quiet=quiet,
+    result.report["units_assumed"] = not given
+    if note:
+        result.report["warnings"].insert(0, note)
+    write_outputs(V, F, result, plans, units=opts.unit_name, sheet=sheet, strain_map=strain_map, quiet=quiet,
                   fit_tolerance=fit_tolerance)
     return result
+
+
+def _assumed_units(V, F) -> str | None:
+    """The warning when the default unit makes the part implausibly small or large (``formats.units``)."""
+    from heatparam.formats.units import assumed_units_warning
+
+    P = V[F.ravel()] if len(F) else V
+    return assumed_units_warning(float((P.max(axis=0) - P.min(axis=0)).max())) if len(P) else None

@@ -120,3 +120,29 @@ def test_chart_colours_are_distinct_and_avoid_line_colours():
     lines = [matplotlib.colors.to_rgb(x) for x in (preview.SEAM_COLOR, preview.HOLE_COLOR, preview.FLIP_COLOR)]
     palette = preview.chart_colors(np.arange(14))
     assert min(np.abs(palette - np.array(x)).max(axis=1).min() for x in lines) > 0.15
+
+
+def test_texture_space_labels(tmp_path, part):
+    """pack texture: UVs in [0,1]² are labelled as texture space with pixels at the resolution, never in mm; true
+    scale keeps the model's unit."""
+    uv = part.uv_true - part.uv_true.min(axis=0)
+    uv /= uv.max()  # into [0,1]², as the texture packing leaves it
+    texts = " | ".join(preview.save_preview(tmp_path / "t.png", part.V, part.F, uv, units="mm", texture=1024))
+    assert "u (texture space, 1 = 1024 px)" in texts and "v (texture space, 1 = 1024 px)" in texts
+    assert "0.2 = 204.8 px" in texts  # the scale bar: a round length and its pixels
+    assert "squares of 0.05 = 51.2 px" in texts  # the checkerboard
+    assert "mm" not in texts
+    texts = " | ".join(preview.save_preview(tmp_path / "s.png", part.V, part.F, part.uv_true, units="cm"))
+    assert "u (cm)" in texts and "texture" not in texts and " cm" in texts
+
+
+def test_headline_counts_charts_and_seam_length(tmp_path, part, cut):
+    """The headline counts what a user counts: charts, holes, and the seams' 3D length with its unit (not the
+    connected seam graphs)."""
+    Vs, Fs, uv, src, paths = cut
+    texts = preview.save_preview(tmp_path / "c.png", Vs, Fs, uv, vertex=src, units="mm")
+    length = sum(np.linalg.norm(np.diff(part.V[p], axis=0), axis=1).sum() for p in paths)
+    head = next(t for t in texts if "iso mean" in t)
+    assert f"seam length {length:.4g} mm" in head and "charts 1" in head and "seams " not in head
+    head = next(t for t in preview.save_preview(tmp_path / "u.png", part.V, part.F, part.uv_true) if "iso mean" in t)
+    assert "seam length" not in head  # no seams, nothing to count

@@ -112,3 +112,92 @@ def test_strain_map(tmp_path):
     rgb = img[..., :3].astype(int)
     coloured = (img[..., 3] > 0) & (np.ptp(rgb, axis=2) > 40)  # saturated pixels (viridis), not grey/white
     assert coloured.mean() > 0.2
+
+
+def _text_boxes(svg_path):
+    """Every label of an SVG as (text, axis-aligned box) from its position, font size, length and rotation: a glyph
+    taken 0.6 font sizes wide, the box centred on (x, y) (the labels are centred both ways)."""
+    out = []
+    for g in ET.parse(svg_path).getroot().iterfind("s:g", NS):
+        if g.get("id") not in ("seams", "annotation"):
+            continue
+        for t in g.iterfind("s:text", NS):
+            if t.get("class") not in ("label", "chart"):
+                continue  # the notes under the pattern
+            x, y, size = float(t.get("x")), float(t.get("y")), float(t.get("font-size"))
+            angle = float(t.get("transform", "rotate(0").split("(")[1].split()[0].rstrip(")"))
+            w, h = 0.6 * size * len(t.text), size
+            c, s = abs(np.cos(np.radians(angle))), abs(np.sin(np.radians(angle)))
+            hx, hy = (c * w + s * h) / 2, (s * w + c * h) / 2
+            out.append((t.text, np.array([x - hx, y - hy, x + hx, y + hy])))
+    return out
+
+
+@pytest.fixture(scope="module")
+def cow_atlas():
+    import heatparam
+    from heatparam import formats
+
+    from conftest import shared_mesh
+
+    V, F = formats.load_mesh(shared_mesh("cow.off"))
+    return V, F, heatparam.parameterize(V, F)
+
+
+def _cow_svg(tmp_path, cow_atlas, **kw):
+    V, F, r = cow_atlas
+    pattern = layout_charts(build_pattern(V, F, r.uv, r.Fuv, r.uv_vertex, chart=r.chart))
+    info = write_svg(tmp_path / "cow.svg", pattern, units="m", title="cow.off", **kw)
+    return tmp_path / "cow.svg", pattern, info
+
+
+def test_atlas_labels_never_overlap(tmp_path, cow_atlas):
+    """The cow's 30 charts: no two label boxes overlap, each chart id sits inside its chart, and what did not fit is
+    counted in a note rather than piled up."""
+    from matplotlib.path import Path
+
+    path, pattern, info = _cow_svg(tmp_path, cow_atlas)
+    boxes = _text_boxes(path)
+    assert len(boxes) > 30
+    B = np.array([b for _, b in boxes])
+    overlap = ((B[:, None, 0] < B[None, :, 2]) & (B[None, :, 0] < B[:, None, 2])
+               & (B[:, None, 1] < B[None, :, 3]) & (B[None, :, 1] < B[:, None, 3]))
+    np.fill_diagonal(overlap, False)
+    pairs = [(boxes[i][0], boxes[j][0]) for i, j in zip(*np.nonzero(overlap), strict=True) if i < j]
+    assert not pairs, pairs[:5]
+    root = ET.parse(path).getroot()
+    ids = {t.text: t for t in root.iterfind(".//s:text[@class='chart']", NS) if t.text[0] == "C"}
+    assert len(ids) + info["labels_left_out"]["chart"] == len(pattern.charts)
+    assert "C4" in ids and "C5" in ids  # the largest charts keep their ids
+    # an id's centre, back in UV (the SVG's origin is the pattern's corner less a margin of twice the text height),
+    # lies inside its own chart
+    from heatparam.formats.dxf import text_height
+
+    (lo, hi), margin = pattern.bbox, 2 * text_height(pattern)
+    for ch in pattern.charts:
+        t = ids.get(f"C{ch.id}")
+        if t is not None:
+            uv = (float(t.get("x")) + lo[0] - margin, hi[1] + margin - float(t.get("y")))
+            assert Path(pattern.uv[ch.outer.rows]).contains_point(uv), ch.id
+    notes = " ".join(t.text for t in root.iterfind(".//s:text", NS) if t.get("class") is None)
+    if sum(info["labels_left_out"].values()):
+        assert "not drawn, no room" in notes
+
+
+def test_texture_atlas_is_labelled_in_texture_space(tmp_path, cow_atlas):
+    """pack texture: the SVG says texture space and pixels, never mm, and is the texture's size in pixels."""
+    V, F, _ = cow_atlas
+    import heatparam
+
+    r = heatparam.parameterize(V, F, pack="texture", resolution=512)
+    pattern = layout_charts(build_pattern(V, F, r.uv, r.Fuv, r.uv_vertex, chart=r.chart))
+    write_svg(tmp_path / "t.svg", pattern, units="mm", title="cow.off", texture=512)
+    root = ET.parse(tmp_path / "t.svg").getroot()
+    texts = [t.text for t in root.iterfind(".//s:text", NS)]
+    assert "units: texture space, 1 = 512 px" in texts
+    assert root.get("data-units") == "texture" and root.get("width").endswith("px")
+    W = float(root.get("viewBox").split()[2])
+    assert float(root.get("width")[:-2]) == pytest.approx(W * 512, rel=1e-5)
+    assert not any("iso mean" in t for t in texts)  # no distortion at the texture's scale
+    assert all(" mm," not in t for t in texts if t.startswith("outline"))  # the outline in pixels, 3D in mm
+    assert render(tmp_path / "t.svg", 24)[..., 3].max() > 0  # cairosvg renders it

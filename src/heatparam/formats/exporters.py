@@ -51,8 +51,20 @@ class Run:
         return Path(self.result.report.get("input", "")).name
 
     @property
+    def texture(self) -> int | None:
+        """The texture's size in pixels when the UVs are texture space ([0,1]², an atlas packed with ``pack
+        texture``), else None (true scale, model units)."""
+        atlas = self.result.report.get("method", {}).get("atlas")
+        if atlas and atlas.get("parameters", {}).get("pack") == "texture":
+            return int(self.result.report["parameters"]["resolution"])
+        return None
+
+    @property
     def header(self) -> str:
         """The comment line of the mesh formats: what the texture coordinates are."""
+        if self.texture:
+            return (f"heatparam {__version__}: vt = texture space [0,1]^2 ({self.texture} px at --resolution; "
+                    f"model units: {self.units})")
         return f"heatparam {__version__}: vt = true-scale UV in {self.units} (model units: {self.units})"
 
 
@@ -131,7 +143,8 @@ def _dxf(path: Path, run: Run) -> dict:
 def _svg(path: Path, run: Run) -> dict:
     from heatparam.formats.svg import write_svg
 
-    return write_svg(path, run.pattern, units=run.units, title=run.title, V=run.V, strain_map=run.strain_map)
+    return write_svg(path, run.pattern, units=run.units, title=run.title, V=run.V, strain_map=run.strain_map,
+                     texture=run.texture)
 
 
 def _step(path: Path, run: Run) -> dict:
@@ -155,7 +168,8 @@ def _preview(path: Path, run: Run) -> dict:
 
     r = run.result
     save_preview(path, run.V[r.uv_vertex], r.Fuv, r.uv, title=run.title or "map", fill_surface=r.fill_surface,
-                 units=run.units, metrics=r.report["metrics"], vertex=r.uv_vertex, chart=run.chart)
+                 units=run.units, metrics=r.report["metrics"], vertex=r.uv_vertex, chart=run.chart,
+                 texture=run.texture)
     return {"format": "png"}
 
 

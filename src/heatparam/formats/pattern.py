@@ -336,14 +336,16 @@ def _chain_rows(edges: list[tuple[int, int]]) -> np.ndarray:
     return np.array(out, dtype=np.int64)
 
 
-def layout_charts(pattern: Pattern, sheet: tuple[float, float] | None = None, gap: float | None = None) -> Pattern:
+def layout_charts(pattern: Pattern, sheet: tuple[float, float] | None = None, gap: float | None = None, *,
+                  units: str = "model units") -> Pattern:
     """Translate charts so that their bounding boxes do not overlap (in place; returns the pattern).
 
     Without ``sheet``, charts whose bounding boxes are already pairwise disjoint keep their positions (a single
     chart is never moved, so the pattern matches the map's UVs exactly); otherwise all charts are placed on
     shelves (tallest first) of a width that makes the arrangement roughly square. With ``sheet = (W, H)`` (UV
     units) charts are packed onto sheets of that size, placed side by side with a gap, first-fit decreasing
-    height; a chart larger than the sheet raises HeatparamError. See the module docstring for why shelves.
+    height; a chart larger than the sheet raises HeatparamError (its lengths named in ``units``). See the module
+    docstring for why shelves.
     """
     charts = pattern.charts
     lo = np.array([pattern.uv[c.rows].min(axis=0) for c in charts])
@@ -366,8 +368,9 @@ def layout_charts(pattern: Pattern, sheet: tuple[float, float] | None = None, ga
         too_big = np.flatnonzero((size[:, 0] + 2 * gap > W) | (size[:, 1] + 2 * gap > H))
         if len(too_big):
             c = too_big[0]
-            raise HeatparamError(f"chart {charts[c].id} ({size[c, 0]:.4g} x {size[c, 1]:.4g}) does not fit on a "
-                                 f"{W:g} x {H:g} sheet with a {gap:.3g} margin — use a larger --sheet")
+            raise HeatparamError(f"chart {charts[c].id} ({size[c, 0]:.4g} x {size[c, 1]:.4g} {units}) does not fit "
+                                 f"on a {W:g} x {H:g} {units} sheet with a {gap:.3g} {units} margin — use a larger "
+                                 "--sheet")
         pos, sheet_of = _shelves(size, W - 2 * gap, H - 2 * gap, gap, margin=gap)
         origin = np.zeros(2)
         n_sheets = int(sheet_of.max()) + 1

@@ -8,6 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from heatparam.formats.units import uv_length, uv_unit
+
 #: Faces drawn at most per panel; larger meshes are drawn from an even subsample of faces in the 3D panel.
 MAX_FACES_3D = 200_000
 
@@ -171,7 +173,7 @@ def _draw_edges(ax, X2: np.ndarray, edges: MapEdges | None, front=None) -> list:
     handles = []
     for E, color, lw, label in ((edges.outline, OUTLINE_COLOR, 0.8, "outer border"),
                                 (edges.holes, HOLE_COLOR, 1.4, f"hole loops ({edges.n_holes})"),
-                                (edges.seams, SEAM_COLOR, 1.6, f"seams ({edges.n_seams})")):
+                                (edges.seams, SEAM_COLOR, 1.6, "seams")):
         if len(E):
             seen = np.ones(len(E), dtype=bool) if front is None else front(E)
             ax.add_collection(LineCollection(_segments(X2, E[seen]), colors=color, linewidths=lw, zorder=3,
@@ -211,23 +213,23 @@ def _front_of(P: np.ndarray, F: np.ndarray, Q: np.ndarray):
     return front
 
 
-def _scale_bar(ax, units: str | None) -> None:
-    """A horizontal scale bar of a round length in model units, lower left of the data."""
+def _scale_bar(ax, units: str | None, texture: int | None = None) -> None:
+    """A horizontal scale bar of a round length in model units (or texture space), lower left of the data."""
     from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
 
     x0, x1 = ax.get_xlim()
     length = nice_length(abs(x1 - x0) / 5)
-    label = f"{length:g} {units}" if units else f"{length:g} model units"
+    label = uv_length(length, units, texture)
     ax.add_artist(AnchoredSizeBar(ax.transData, length, label, loc="lower left", pad=0.4, borderpad=0.5,
                                   sep=4, frameon=True, size_vertical=0, fontproperties={"size": 9}))
 
 
 def draw_layout(ax, F: np.ndarray, uv: np.ndarray, iso: np.ndarray, flipped: np.ndarray, *, vmax: float | None = None,
                 title: str = "", units: str | None = None, edges: MapEdges | None = None,
-                legend: bool = True) -> float:
+                legend: bool = True, texture: int | None = None) -> float:
     """UV triangles coloured by isometric distortion (1 = isometric) up to ``vmax`` (None:
     :func:`distortion_range` of the data), flipped triangles in red, ``edges`` drawn over them, a scale bar in
-    ``units``. Returns the vmax used.
+    ``units`` (in texture space of ``texture`` pixels when given). Returns the vmax used.
 
     F : (m,3) int64; uv : (n_uv,2) float64; iso : (m,) float64; flipped : (m,) bool.
     """
@@ -252,12 +254,8 @@ def draw_layout(ax, F: np.ndarray, uv: np.ndarray, iso: np.ndarray, flipped: np.
     ax.autoscale_view()
     ax.margins(x=0.04, y=0.12)  # room for the scale bar under the layout
     ax.autoscale_view()
-    unit = f" ({units or 'model units'})"
-    ax.set_xlabel(f"u{unit}", fontsize=9)
-    ax.set_ylabel(f"v{unit}", fontsize=9)
-    ax.tick_params(labelsize=8)
+    _uv_axes(ax, units, texture)
     ax.set_title(title or "UV layout: isometric distortion", fontsize=10)
-    _scale_bar(ax, units)
     if legend and handles:
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=len(handles), fontsize=8,
                   frameon=False)
@@ -269,7 +267,7 @@ def draw_layout(ax, F: np.ndarray, uv: np.ndarray, iso: np.ndarray, flipped: np.
 
 
 def draw_charts(ax, F: np.ndarray, uv: np.ndarray, chart: np.ndarray, *, units: str | None = None,
-                edges: MapEdges | None = None, title: str = "") -> None:
+                edges: MapEdges | None = None, title: str = "", texture: int | None = None) -> None:
     """UV triangles in one colour per chart (``chart`` (m,) ids), ``edges`` over them, a scale bar."""
     from matplotlib.collections import PolyCollection
 
@@ -279,15 +277,20 @@ def draw_charts(ax, F: np.ndarray, uv: np.ndarray, chart: np.ndarray, *, units: 
     ax.autoscale_view()
     ax.margins(x=0.04, y=0.12)
     ax.autoscale_view()
-    unit = f" ({units or 'model units'})"
-    ax.set_xlabel(f"u{unit}", fontsize=9)
-    ax.set_ylabel(f"v{unit}", fontsize=9)
-    ax.tick_params(labelsize=8)
+    _uv_axes(ax, units, texture)
     ax.set_title(title or f"UV layout: {len(np.unique(chart))} charts", fontsize=10)
-    _scale_bar(ax, units)
     if handles:
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=len(handles), fontsize=8,
                   frameon=False)
+
+
+def _uv_axes(ax, units: str | None, texture: int | None) -> None:
+    """Axis labels and the scale bar of a UV panel: in model units, or texture space (``texture`` pixels)."""
+    unit = f" ({uv_unit(units, texture)})"
+    ax.set_xlabel(f"u{unit}", fontsize=9)
+    ax.set_ylabel(f"v{unit}", fontsize=9)
+    ax.tick_params(labelsize=8)
+    _scale_bar(ax, units, texture)
 
 
 def _cmap():
@@ -297,10 +300,11 @@ def _cmap():
 
 
 def draw_checker_3d(ax, V: np.ndarray, F: np.ndarray, uv: np.ndarray, *, cells: int = 16, title: str = "",
-                    chart: np.ndarray | None = None, edges: MapEdges | None = None, units: str | None = None) -> None:
+                    chart: np.ndarray | None = None, edges: MapEdges | None = None, units: str | None = None,
+                    texture: int | None = None) -> None:
     """The 3D mesh in an orthographic view along its thinnest principal axis, a checkerboard of round-sized
-    squares (model units) through the map; faces tinted by ``chart`` (m,) when given; ``edges`` (outline,
-    holes, seams) drawn over it."""
+    squares (UV units: model units, or texture space of ``texture`` pixels) through the map; faces tinted by
+    ``chart`` (m,) when given; ``edges`` (outline, holes, seams) drawn over it."""
     frame = _principal_frame(V)
     V0 = V
     span = float(np.ptp(uv, axis=0).max()) if len(uv) else 1.0
@@ -331,11 +335,14 @@ def draw_checker_3d(ax, V: np.ndarray, F: np.ndarray, uv: np.ndarray, *, cells: 
         c, Wt = frame
         P0 = (V0 - c) @ Wt.T
         _draw_edges(ax, P0[:, :2], edges, front=_front_of((V - c) @ Wt.T, F, P0))
-    ax.set_title(title or f"3D mesh, checkerboard through the map: squares of {cell:g} {units or 'model units'}",
+    ax.set_title(title or f"3D mesh, checkerboard through the map: squares of {uv_length(cell, units, texture)}",
                  fontsize=10)
 
 
-def headline(metrics: dict, charts: int, edges: MapEdges | None) -> str:
+def headline(metrics: dict, charts: int, edges: MapEdges | None, seam_length: str = "") -> str:
+    """The numbers a user counts: distortion, flips, crossings, charts, holes and the seams' 3D length (as text
+    with its unit; "" without seams)."""
+
     def num(key: str, fmt: str) -> str:
         v = metrics.get(key)
         return "n/a" if v is None else format(v, fmt)
@@ -344,20 +351,21 @@ def headline(metrics: dict, charts: int, edges: MapEdges | None) -> str:
              f"flipped {num('flips', 'd')}", f"boundary crossings {num('boundary_crossings', 'd')}",
              f"charts {charts}"]
     if edges is not None:
-        parts += [f"holes {edges.n_holes}", f"seams {edges.n_seams}"]
+        parts += [f"holes {edges.n_holes}", *([f"seam length {seam_length}"] if seam_length else [])]
     return "   ·   ".join(parts)
 
 
 def save_preview(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.ndarray, *, title: str = "",
                  fill_surface=None, units: str | None = "mm", chart: np.ndarray | None = None,
-                 metrics: dict | None = None, vertex: np.ndarray | None = None) -> None:
+                 metrics: dict | None = None, vertex: np.ndarray | None = None, texture: int | None = None
+                 ) -> list[str]:
     """Write the preview PNG atomically.
 
     Panels: the UV layout coloured by isometric distortion (colour bar from 1 to the data's 99th percentile,
     flipped faces red, a scale bar in ``units``), the layout by chart (only with ``chart`` of more than one id),
     and the 3D mesh with a checkerboard through the map (paper Figures 10-12; faces tinted by chart). The outer
     border, hole loops and seams (UV boundary edges whose 3D edge is interior) are drawn on the layout and the
-    3D view. The headline numbers (iso mean and p95, flips, boundary crossings, charts, holes, seams) head the
+    3D view. The headline numbers (iso mean and p95, flips, boundary crossings, charts, holes, seam length) head the
     figure. With ``fill_surface`` (a pipeline ``FillSurface``), two more panels show M* with M over it
     (Figure 7) and M*'s MDS layout with M's trimmed layout (Figure 9).
 
@@ -366,10 +374,16 @@ def save_preview(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.n
     V : (n_uv,3) float64, the 3D point of each uv row (``V[result.uv_vertex]`` for a seamed map).
     F : (m,3) int64, faces on uv rows (``result.Fuv``).
     uv : (n_uv,2) float64, the map in model units.
-    units : the model's length unit for the axes and the scale bar (None: "model units").
+    units : the model's length unit for the axes, the scale bar and the seam length (None: "model units").
     chart : (m,) int per-face chart id, or None (charts are then the layout's connected pieces).
     metrics : the report's ``metrics`` (iso_mean, iso_p95, flips, boundary_crossings); None: computed here.
     vertex : (n_uv,) int64 input vertex of each uv row (``result.uv_vertex``); None: rows at one 3D point weld.
+    texture : the texture's size in pixels when ``uv`` is texture space ([0,1]², ``pack texture``): the UV panels
+        are labelled in it instead of ``units``.
+
+    Returns
+    -------
+    The figure's texts (headline, titles, axis and scale-bar labels), so that a caller can check what it says.
     """
     from heatparam import metrics as mt
     from heatparam.formats.files import atomic_write
@@ -383,19 +397,24 @@ def save_preview(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.n
     show_charts = chart is not None and charts > 1
     n = 2 + show_charts + (2 if fill_surface is not None else 0)
     plt, fig, axes = _figure(n, extra_height=0.5)
-    fig.suptitle(f"{title + chr(10) if title else ''}{headline(metrics, charts, edges)}", fontsize=11)
-    draw_layout(axes[0], F, uv, pf.iso, pf.flipped, units=units, edges=edges,
-                title=f"UV layout{f' ({units})' if units else ''}: isometric distortion")
+    seams = float(np.linalg.norm(V[edges.seams[:, 0]] - V[edges.seams[:, 1]], axis=1).sum()) / 2  # once per side
+    seam_length = f"{seams:.4g} {units or 'model units'}" if seams else ""
+    fig.suptitle(f"{title + chr(10) if title else ''}{headline(metrics, charts, edges, seam_length)}", fontsize=11)
+    draw_layout(axes[0], F, uv, pf.iso, pf.flipped, units=units, edges=edges, texture=texture,
+                title=f"UV layout ({uv_unit(units, texture)}): isometric distortion")
     k = 1
     if show_charts:
-        draw_charts(axes[1], F, uv, chart, units=units, edges=edges)
+        draw_charts(axes[1], F, uv, chart, units=units, edges=edges, texture=texture)
         k = 2
-    draw_checker_3d(axes[k], V, F, uv, chart=chart if show_charts else None, edges=edges, units=units)
+    draw_checker_3d(axes[k], V, F, uv, chart=chart if show_charts else None, edges=edges, units=units,
+                    texture=texture)
     if fill_surface is not None:
         _draw_fill_panels(axes[k + 1 : k + 3], V, F, fill_surface)
     with atomic_write(path, "wb") as fh:
         fig.savefig(fh, format="png")
+    texts = [t.get_text() for t in fig.findobj(lambda a: hasattr(a, "get_text")) if t.get_text()]
     plt.close(fig)
+    return texts
 
 
 def _checked(V, F, uv, chart) -> tuple:

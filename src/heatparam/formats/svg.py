@@ -5,19 +5,25 @@ and a ``legend``), ``sheet`` (sheet frames), ``outline`` (one closed ``<polygon>
 ``holes`` (one ``<polygon>`` per hole), ``seams`` (one ``<polyline>`` per seam side with its label) and
 ``annotation`` (chart ids, distortion summary, units). The root's ``width``/``height`` are physical lengths in
 the declared units (m → mm, ft → in) and its ``viewBox`` is in model units, so one user unit = one model unit;
-the UV ``v`` axis points up (the SVG y axis is flipped).
+the UV ``v`` axis points up (the SVG y axis is flipped). An atlas packed into texture space ([0,1]², ``pack
+texture``) is drawn at the texture's size in pixels instead, and says so.
+
+Labels never overlap (``formats.labels``): each sits inside its chart, sized to it; those that fit nowhere are left
+out and a note under the pattern counts them.
 """
 
 from __future__ import annotations
 
 import os
+import textwrap
 from xml.sax.saxutils import escape
 
 import numpy as np
 
-from heatparam.formats.dxf import chart_summary, summary_height, text_height
+from heatparam.formats.dxf import text_height
+from heatparam.formats.labels import GLYPH_WIDTH, Labels, place_labels
 from heatparam.formats.pattern import Pattern, face_iso
-from heatparam.formats.units import svg_length
+from heatparam.formats.units import svg_length, uv_unit
 
 STYLE = """
   .cut { fill: none; stroke: #000000; }
@@ -26,6 +32,7 @@ STYLE = """
   .sheet { fill: none; stroke: #888888; }
   .label { font-family: sans-serif; fill: #1f5fd6; text-anchor: middle; dominant-baseline: middle; }
   .note { font-family: sans-serif; fill: #2a7d2a; }
+  .chart { text-anchor: middle; dominant-baseline: middle; }
 """
 
 
@@ -34,7 +41,8 @@ def _fmt(P: np.ndarray) -> str:
 
 
 def write_svg(path: str | os.PathLike, pattern: Pattern, units: str = "mm", title: str = "",
-              V: np.ndarray | None = None, strain_map: bool = False, vmax: float | None = None) -> dict:
+              V: np.ndarray | None = None, strain_map: bool = False, vmax: float | None = None,
+              texture: int | None = None) -> dict:
     """Write ``pattern`` (already laid out) as an SVG of physical size.
 
     Parameters
@@ -47,30 +55,35 @@ def write_svg(path: str | os.PathLike, pattern: Pattern, units: str = "mm", titl
     strain_map : fill faces by isometric distortion max(sigma1, 1/sigma2) (viridis, flipped faces red) and draw
         a legend.
     vmax : top of the colour scale (default: the 99th area percentile clipped to [1.01, 2]).
+    texture : the texture's size in pixels when the pattern's UVs are texture space ([0,1]²): the SVG is that many
+        pixels across per UV unit, and its notes and chart summaries say texture space instead of ``units``.
 
     Returns
     -------
     dict
-        ``{"format": "svg", "units", "width", "height", "outlines", "holes", "seam_labels", "strain_map"}``.
+        ``{"format": "svg", "units", "width", "height", "outlines", "holes", "seam_labels", "labels_left_out",
+        "strain_map"}``.
     """
     th = text_height(pattern)
     lo, hi = pattern.bbox
     margin = 2 * th
-    n_notes = 2 if title else 1
+    labels = place_labels(pattern, th, {ch.id: _summary(ch, units, texture) for ch in pattern.charts}, _upright)
     legend_w = 12 * th if strain_map else 0.0
     x0, y_top = lo[0] - margin, hi[1] + margin
     W = float(hi[0] - lo[0] + 2 * margin + legend_w)
-    H = float(hi[1] - lo[1] + 2 * margin + (1.5 * n_notes + 1) * th)
+    notes = _notes(units, texture, title, labels, chars=max(20, int((W - 2 * margin) / (GLYPH_WIDTH * th))))
+    H = float(hi[1] - lo[1] + 2 * margin + (1.5 * len(notes) + 1) * th)
 
     def tr(P):  # model (u, v) → SVG user units (x right, y down)
         P = np.atleast_2d(P)
         return np.column_stack([P[:, 0] - x0, y_top - P[:, 1]])
 
     sw = th / 8
+    width, height = (f"{x * texture:.6g}px" if texture else svg_length(x, units) for x in (W, H))
     out = ['<?xml version="1.0" encoding="UTF-8"?>',
-           f'<svg xmlns="http://www.w3.org/2000/svg" width="{svg_length(W, units)}" '
-           f'height="{svg_length(H, units)}" viewBox="0 0 {W:.9g} {H:.9g}" data-units="{units}">',
-           f"<title>{escape(title or 'heatparam flat pattern')} (units: {units})</title>",
+           f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" viewBox="0 0 {W:.9g} {H:.9g}" '
+           f'data-units="{"texture" if texture else units}">',
+           f"<title>{escape(title or 'heatparam flat pattern')} (units: {uv_unit(units, texture)})</title>",
            f"<style>{STYLE.replace('DASH', f'{2 * th:.4g} {th:.4g}')}</style>"]
     if strain_map:
         if V is None:
@@ -79,14 +92,35 @@ def write_svg(path: str | os.PathLike, pattern: Pattern, units: str = "mm", titl
     out += _sheet_group(pattern, tr, sw)
     loops, n_holes = _loop_groups(pattern, tr, sw)
     out += loops
-    out += _seam_group(pattern, tr, th, sw)
-    out += _annotation_group(pattern, tr, th, units, title, H, margin)
+    out += _seam_group(pattern, tr, sw, labels)
+    out += _annotation_group(tr, th, notes, H, margin, labels)
     out.append("</svg>")
     with open(path, "w", encoding="utf-8") as fh:
         fh.write("\n".join(out) + "\n")
-    return {"format": "svg", "units": units, "width": svg_length(W, units), "height": svg_length(H, units),
-            "outlines": len(pattern.charts), "holes": n_holes, "seam_labels": len(pattern.seams),
-            "strain_map": bool(strain_map)}
+    return {"format": "svg", "units": units, "width": width, "height": height, "outlines": len(pattern.charts),
+            "holes": n_holes, "seam_labels": sum(lb.kind == "seam" for lb in labels.placed),
+            "labels_left_out": labels.left_out, "strain_map": bool(strain_map)}
+
+
+def _summary(ch, units: str, texture: int | None) -> list[str]:
+    """A chart's summary lines, short enough to fit inside it: its distortion and outline (in texture space the
+    outline in pixels; the distortion at the texture's common scale is no isometric distortion: see the report)."""
+    if texture:
+        return [f"outline {ch.outer.length_uv * texture:.0f} px, 3D {ch.outer.length_3d:.4g} {units}"]
+    return [f"iso mean {ch.iso_mean:.4f}, max {ch.iso_max:.4f}",
+            f"outline {ch.outer.length_uv:.4g} {units}, 3D {ch.outer.length_3d:.4g} {units}"]
+
+
+def _notes(units: str, texture: int | None, title: str, labels: Labels, *, chars: int) -> list[str]:
+    """The lines under the pattern, at most ``chars`` characters each: its units, what labels were left out, the
+    title."""
+    out = [f"units: {uv_unit(units, texture)}"]
+    left = [f"{n} {what}" for what, n in (("chart ids", labels.left_out["chart"]),
+                                           ("chart summaries", labels.left_out["summary"]),
+                                           ("seam labels", labels.left_out["seam"])) if n]
+    if left:
+        out += textwrap.wrap(f"not drawn, no room: {', '.join(left)} (the DXF has all)", chars)
+    return out + ([title] if title else [])
 
 
 def _sheet_group(pattern: Pattern, tr, sw: float) -> list[str]:
@@ -116,34 +150,31 @@ def _loop_groups(pattern: Pattern, tr, sw: float) -> tuple[list[str], int]:
     return out, n_holes
 
 
-def _seam_group(pattern: Pattern, tr, th: float, sw: float) -> list[str]:
-    """The ``seams`` group: one polyline per seam side and its label, turned along the seam."""
+def _seam_group(pattern: Pattern, tr, sw: float, labels: Labels) -> list[str]:
+    """The ``seams`` group: one polyline per seam side, and the seam labels placed, turned along their seam."""
     out = [f'<g id="seams" stroke-width="{sw:.4g}">']
     for s in pattern.seams:
-        x, y = tr(s.label_point(0.8 * th))[0]
         out.append(f'<polyline class="seam" data-label="{s.label}" points="{_fmt(tr(pattern.uv[s.rows]))}"/>')
-        out.append(f'<text class="label" x="{x:.9g}" y="{y:.9g}" font-size="{th:.4g}" '
-                   f'transform="rotate({-_upright(s.angle):.4g} {x:.9g} {y:.9g})">{s.label}</text>')
+    for lb in labels.placed:
+        if lb.kind == "seam":
+            x, y = tr([lb.x, lb.y])[0]
+            out.append(f'<text class="label" x="{x:.9g}" y="{y:.9g}" font-size="{lb.size:.4g}" '
+                       f'transform="rotate({-lb.angle:.4g} {x:.9g} {y:.9g})">{lb.text}</text>')
     out.append("</g>")
     return out
 
 
-def _annotation_group(pattern: Pattern, tr, th: float, units: str, title: str, H: float,
-                      margin: float) -> list[str]:
-    """The ``annotation`` group: chart ids with their distortion summaries, then the units and title lines."""
-    from heatparam.formats.dxf import label_point
-
-    n_notes = 2 if title else 1
+def _annotation_group(tr, th: float, notes: list[str], H: float, margin: float, labels: Labels) -> list[str]:
+    """The ``annotation`` group: chart ids and their distortion summaries where placed, then the notes (units,
+    labels left out, title)."""
+    n_notes = len(notes)
     out = ['<g id="annotation" class="note">']
-    for ch in pattern.charts:
-        x, y = tr(label_point(pattern, ch))[0]
-        out.append(f'<text x="{x:.9g}" y="{y:.9g}" font-size="{2 * th:.4g}" text-anchor="middle">C{ch.id}</text>')
-        lines = chart_summary(ch, units)
-        sh = summary_height(pattern, ch, lines, th)
-        for i, line in enumerate(lines):
-            out.append(f'<text x="{x:.9g}" y="{y + 1.5 * th + 1.5 * i * sh:.9g}" font-size="{sh:.4g}" '
-                       f'text-anchor="middle">{escape(line)}</text>')
-    for i, line in enumerate([f"units: {units}", *([title] if title else [])]):
+    for lb in labels.placed:
+        if lb.kind != "seam":
+            x, y = tr([lb.x, lb.y])[0]
+            out.append(f'<text class="chart" x="{x:.9g}" y="{y:.9g}" font-size="{lb.size:.4g}">{escape(lb.text)}'
+                       "</text>")
+    for i, line in enumerate(notes):
         y = H - (1.5 * (n_notes - 1 - i) + 1) * th
         out.append(f'<text x="{margin:.9g}" y="{y:.9g}" font-size="{th:.4g}">{escape(line)}</text>')
     out.append("</g>")

@@ -121,7 +121,11 @@ def _atlas(V: np.ndarray, F: np.ndarray, opts: Options, prog: Progress, why: str
     """The atlas stage (``atlas_stage``): repair, segment into disk charts, flatten each with these stages
     (:func:`parameterize_disk`), pack; the map as a :class:`Result` with ``chart`` set."""
     with prog.stage("atlas"):
-        return atlas_result(V, F, opts, why=why, flatten_disk=parameterize_disk, prog=prog)
+        result = atlas_result(V, F, opts, why=why, flatten_disk=parameterize_disk, prog=prog)
+    # the stages as the log printed them (the disk check that found no disk, then the whole atlas stage), so that
+    # they add up to the total unwrap prints
+    result.report["timings_s"] = dict(prog.timings)
+    return result
 
 
 def _to_model(flat: Flat, frame) -> Flat:
@@ -152,8 +156,20 @@ class _Flattening:
     def __init__(self, surface: Surface, opts: Options, prog: Progress, starts: dict[str, np.ndarray] | None,
                  pausing: Pausing):
         self.surface, self.opts, self.prog, self.starts, self.pausing = surface, opts, prog, starts, pausing
+        self.label = ""
 
     def run(self, seamed: bool) -> Flat:
+        self.label = self.pass_name(seamed)
+        with self.prog.in_pass(self.label):
+            return self.flattened(seamed)
+
+    def pass_name(self, seamed: bool) -> str:
+        """The pass the log names (stages run once per map when the seams stage may make a second one)."""
+        if seamed:
+            return "map with seams"
+        return "map without seams" if self.surface.info.n_holes and self.opts.seams != "none" else ""
+
+    def flattened(self, seamed: bool) -> Flat:
         opts, prog = self.opts, self.prog
         with prog.stage("fill decision"):
             fill_used, fill_reason = decide_fill(opts, self.surface, seamed)
@@ -214,9 +230,11 @@ class _Refined:
                     None if self.rf.done else self.resume)
 
     def resume(self) -> Flat:
-        with self.flattening.prog.stage("refine"):
-            self.rf.run()
-        return self.flat()
+        f = self.flattening
+        with f.prog.in_pass(", ".join(x for x in (f.label, "resumed") if x)):
+            with f.prog.stage("refine"):
+                self.rf.run()
+            return self.flat()
 
 
 __all__ = ["FillSurface", "Options", "Result", "flatten", "parameterize", "parameterize_disk"]

@@ -162,7 +162,7 @@ def geodesic_layout(V: np.ndarray, F: np.ndarray, params: HeatParams, prog: Prog
     if mode == "all-pairs" and points is None:
         return _all_pairs_layout(solver, n, params, prog, rng, (mode, t, op.mollify_eps, warning))
     k = n if mode == "all-pairs" else min(n, params.landmarks or default_landmarks(n))  # never more than vertices
-    with prog.stage("geodesics"), prog.bar(k + 1, "landmark geodesics", "src") as bar:
+    with prog.stage("geodesics", "landmarks"), prog.bar(k + 1, "landmark geodesics", "src") as bar:
         if k >= n:
             lm = np.arange(n)
             DL = solver.distances(lm, progress=bar.update)
@@ -218,7 +218,7 @@ def _points_layout(solver: heat.HeatGeodesics, F: np.ndarray, DL: np.ndarray, lm
     both -= both[: len(face)].mean(axis=0)
     uv, uv_surface = both[: len(face)], both[len(face) :]
     # Stress sample: distances on the fill surface from a few of the points themselves (point sources).
-    with prog.stage("geodesics"):
+    with prog.stage("geodesics", "stress sample"):
         cols = np.sort(rng.choice(len(face), size=min(len(face), params.stress_sources), replace=False))
         Ds = solver.distances(heat.point_sources(F, face[cols], bary[cols], n))
         D_stress = np.einsum("pc,pck->pk", bary, Ds[F[face]])

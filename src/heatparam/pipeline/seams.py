@@ -78,7 +78,7 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat, flatten: Cal
     reason = _no_cut_reason(surface, opts, flat)
     cut = None
     if reason is None:
-        with prog.stage("seams"):
+        with prog.stage("seams", "cut open"):
             cut, reason = _cut_open(surface)
     if reason is not None:
         flat = _finished(flat)
@@ -88,7 +88,7 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat, flatten: Cal
                split_vertices=int(len(cut.surface.V) - len(surface.V)))
     starts: dict[str, np.ndarray] = {}
     if opts.refine != "none":
-        with prog.stage("seams"):
+        with prog.stage("seams", "conformal start"):
             x, rep["conformal_reopened"] = _reopened_conformal(cut.surface, cut.source)
         if x is not None:
             starts["conformal_reopened"] = x
@@ -97,7 +97,7 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat, flatten: Cal
     pausing = Pausing(seam_pause(surface, opts).excess, park=False)
     maps = _Maps(flat, flatten(cut.surface, opts, prog, seamed=True, starts=starts or None, pausing=pausing))
     del flat  # from here on only ``maps`` holds the two maps, so that the one not kept can be freed
-    return _chosen(opts, maps, cut, rep, sum(lengths))
+    return _chosen(opts, maps, cut, rep, float(surface.frame.lengths_to_model(sum(lengths))))
 
 
 @dataclass
@@ -125,7 +125,8 @@ def _cut_open(surface: Surface) -> tuple[Cut | None, str | None]:
 
 
 def _chosen(opts, maps: _Maps, cut: Cut, rep: dict, length: float) -> SeamResult:
-    """The seams stage's value once both maps exist: the one kept finished, the other left where it is."""
+    """The seams stage's value once both maps exist: the one kept finished, the other left where it is (``length``:
+    the seams' in model units, for the warning)."""
     if opts.seams == "auto":
         better, maps.without, maps.cut = _decide(maps.without, maps.cut)
     else:
@@ -155,9 +156,9 @@ def _chosen(opts, maps: _Maps, cut: Cut, rep: dict, length: float) -> SeamResult
     rep["reason"] = (f"the holes cost distortion: iso mean {iso:.4f}{was_paused} without seams, {iso_s:.4f} with "
                      f"{len(cut.paths)} (seams='none' keeps one uncut piece)" if opts.seams == "auto"
                      else "requested (seams='holes')")
-    warning = (f"the map has seams: {len(cut.paths)} cut(s), {length:.6g} long in all, join the holes to the border "
-               f"(iso mean {iso:.4f}{' where its polish paused' if paused else ''} → {iso_s:.4f}); the OBJ's vt rows "
-               "split along them (seams='none': one uncut piece)")
+    warning = (f"the map has seams: {len(cut.paths)} cut(s), {length:.6g} {opts.unit_name} long in all, join the holes "
+               f"to the border (iso mean {iso:.4f}{' where its polish paused' if paused else ''} → {iso_s:.4f}); the "
+               "OBJ's vt rows split along them (seams='none': one uncut piece)")
     return SeamResult(cut_flat, cut, rep, [*cut_flat.warnings, warning], flat)
 
 
