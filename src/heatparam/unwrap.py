@@ -133,8 +133,14 @@ def unwrap_planned(input, plans, *, options=None, quiet: bool = True, units: str
 
 
 def _assumed_units(V, F) -> str | None:
-    """The warning when the default unit makes the part implausibly small or large (``formats.units``)."""
+    """The warning when the default unit makes the part implausibly small or large (``formats.units``). The mesh is
+    not validated yet: only face indices in range and finite points count (a bad mesh is refused by the pipeline)."""
+    import numpy as np
+
     from heatparam.formats.units import assumed_units_warning
 
-    P = V[F.ravel()] if len(F) else V
+    idx = np.asarray(F).ravel()
+    idx = idx[(idx >= 0) & (idx < len(V))].astype(np.int64) if idx.dtype.kind in "iu" else np.arange(len(V))
+    P = np.asarray(V, dtype=np.float64)[idx] if len(idx) else np.zeros((0, 3))
+    P = P[np.isfinite(P).all(axis=1)] if P.ndim == 2 else np.zeros((0, 3))
     return assumed_units_warning(float((P.max(axis=0) - P.min(axis=0)).max())) if len(P) else None
