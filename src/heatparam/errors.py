@@ -11,7 +11,7 @@ class MeshError(HeatparamError):
 
 class TopologyError(MeshError):
     """The mesh is valid but not a single disk (closed, handles, nearly closed, several components, non-manifold or
-    inconsistently oriented): ``heatparam.parameterize`` makes an atlas of it (``heatparam.atlas``) instead.
+    inconsistently oriented): ``heatparam.parameterize`` makes an atlas of it (``pipeline.atlas_stage``) instead.
 
     ``reason`` says what the mesh is (the atlas reports it), ``advice`` what a user of ``parameterize_disk`` can do;
     the message is both."""

@@ -13,7 +13,7 @@ from heatparam.atlas.overlap import count_overlaps, uv_degenerate_faces
 from heatparam.errors import MeshError
 from heatparam.mesh.topology import degenerate_faces
 from heatparam.metrics import distortion
-from heatparam.pipeline import atlas_stage, parameterize_disk
+from heatparam.pipeline import atlas_stage, parameterize, parameterize_disk
 
 from conftest import shared_mesh
 from hostile import collinear_corner, leaked, split_edge
@@ -272,3 +272,14 @@ def test_chart_failure_message_says_why_and_what_to_do(monkeypatch):
         atlas_stage.atlas(V, F, refuse, mds_start="always")
     msg = str(exc.value)
     assert not leaked(msg) and "\n" not in msg and "could not be flattened" in msg and "repair" in msg, msg
+
+
+def test_an_atlas_the_mesh_forced_warns_one_asked_for_does_not():
+    """A closed mesh becomes an atlas without being asked: a warning says so and what to do for one piece. An atlas
+    asked for (``max_distortion``) is what the user wanted: no such warning."""
+    V, F = datasets.torus()[:2]
+    forced = parameterize(V, F).report["warnings"]
+    assert any(w.startswith("an atlas of") and "cut the mesh into a disk first" in w for w in forced), forced
+    s = datasets.cylinder_patch(h=0.1)
+    asked = parameterize(s.V, s.F, max_distortion=1.05).report["warnings"]
+    assert not any(w.startswith("an atlas of") for w in asked), asked

@@ -147,8 +147,11 @@ def atlas_result(V: np.ndarray, F: np.ndarray, opts: Options, *, why: str, flatt
     t = res.report["totals"]
     summary.update(charts=t["charts"], overlapping_triangle_pairs=t["overlapping_triangle_pairs"],
                    uv_degenerate_faces=t["uv_degenerate_faces"], seam_length=t["seam_length"])
-    warnings = [f"an atlas of {t['charts']} chart(s) ({why}); the OBJ's vt rows split along the seams",
-                *res.report.get("warnings", [])]
+    # an atlas asked for (max_distortion) is no news; one the mesh forced is, with what to do for one piece
+    made = [] if opts.max_distortion else [
+        f"an atlas of {t['charts']} chart(s): the mesh is not one disk ({why}); the OBJ's vt rows split along the "
+        "seams (for one piece, cut the mesh into a disk first)"]
+    warnings = [*made, *res.report.get("warnings", [])]
     referenced = np.zeros(len(V), dtype=bool)
     referenced[F.ravel()] = True
     method = {"atlas": res.report, "why": why, "seams": {"mode": opts.seams, "used": True,
