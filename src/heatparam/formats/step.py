@@ -76,6 +76,9 @@ _MAX_SPLITS = 12  # a face whose fit misses the tolerance is split (see _split),
 _CARVE_RINGS = 2  # rings of neighbours carved out with the triangles off the tolerance
 _BORDER = 0.25  # x tolerance: a face's border is held closer to the mesh, so that its neighbours meet it closely
 _BORDER_WEIGHT = 10.0  # the weight of the border's points in the least squares
+_EDGE_SAMPLES = 33  # points along each border edge where its gap to the surface is measured (the edge tolerance)
+# edge tolerance / the gap measured: BRepCheck found 0.254 tol between 17 samples whose max was 0.218 (a cow face)
+_EDGE_MARGIN = 1.5
 
 
 def _require_ocp():
@@ -382,6 +385,50 @@ def _regions(V: np.ndarray, F: np.ndarray, Fuv: np.ndarray, uv_vertex: np.ndarra
     return lab, int(sharp.sum())
 
 
+def _unslit(region: np.ndarray, Fuv: np.ndarray, uv: np.ndarray, uv_vertex: np.ndarray) -> tuple[np.ndarray, int]:
+    """The regions (m,) cut until none holds both sides of a slit (a seam of the chart cut into it: a mesh edge
+    on its border twice), and the number of cuts. A face bounded by both sides would need a seam edge on a surface
+    that is not closed, which OpenCascade's BRepCheck rejects (18 of the cow's faces). Each cut is the
+    perpendicular bisector, in uv, of the two triangles beside one slit edge: they end up in different pieces."""
+    out = region.copy()
+    todo, nxt, cuts = list(range(int(region.max()) + 1)), int(region.max()) + 1, 0
+    while todo:
+        r = todo.pop()
+        fr = np.flatnonzero(out == r)
+        pair = _slit_pair(Fuv[fr], uv_vertex)
+        if pair is None:
+            continue
+        c = uv[Fuv[fr]].mean(axis=1)
+        c1, c2 = c[pair[0]], c[pair[1]]
+        side = (c - 0.5 * (c1 + c2)) @ (c2 - c1) > 0
+        a, b, _ = _adjacent(Fuv[fr])
+        lab = _components(len(fr), a[side[a] == side[b]], b[side[a] == side[b]])
+        for k in range(1, lab.max() + 1):
+            out[fr[lab == k]] = nxt
+            todo.append(nxt)
+            nxt += 1
+        todo.append(r)
+        cuts += 1
+    return out, cuts
+
+
+def _slit_pair(Fr: np.ndarray, uv_vertex: np.ndarray) -> tuple[int, int] | None:
+    """The two triangles of Fr (mr,3), rows of uv, on both sides of a slit edge (a mesh edge that is a border edge
+    of Fr twice), or None."""
+    he = np.concatenate([Fr[:, [0, 1]], Fr[:, [1, 2]], Fr[:, [2, 0]]])
+    tri = np.tile(np.arange(len(Fr)), 3)
+    _, inv, counts = np.unique(np.sort(he, axis=1), axis=0, return_inverse=True, return_counts=True)
+    border = counts[inv.reshape(-1)] == 1
+    mesh = np.sort(uv_vertex[he[border]], axis=1)
+    _, inv, counts = np.unique(mesh, axis=0, return_inverse=True, return_counts=True)
+    inv = inv.reshape(-1)
+    twice = np.flatnonzero(counts[inv] >= 2)
+    if not len(twice):
+        return None
+    i, j = twice[0], twice[inv[twice] == inv[twice[0]]][1]
+    return int(tri[border][i]), int(tri[border][j])
+
+
 def _components(m: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Labels (m,) of the connected components of the graph of m nodes and edges (a, b)."""
     G = sp.coo_matrix((np.ones(len(a)), (a, b)), shape=(m, m))
@@ -413,6 +460,113 @@ def _creases(V: np.ndarray, F: np.ndarray, a: np.ndarray, b: np.ndarray, tol: fl
     return hard | soft
 
 
+class _Piece(NamedTuple):
+    """A fitted STEP face before its topology: its surface, its boundary loops (rows of uv, outer first, ordered as
+    on the surface: the outer counter-clockwise), whether the face is reversed (a mirrored map) and, per loop and
+    border edge, the surface's largest distance from the mesh edge (:func:`_border_gaps`)."""
+
+    surface: object
+    loops: list[np.ndarray]
+    reverse: bool
+    gaps: list[np.ndarray]
+
+
+class _Chain:
+    """One OpenCascade edge: a run of border edges between two corners (:func:`_border_corners`), its mesh
+    vertices ``seq`` and the faces along it, each (piece, its uv rows in the order of seq, forward?)."""
+
+    def __init__(self, seq: list[int]):
+        self.seq, self.sides, self.gap, self.edge = seq, [], 0.0, None
+
+    def joins(self, seq: list[int], p: int, pieces: list[_Piece]) -> bool | None:
+        """Whether the border ``seq`` of piece p runs along this chain the other way round on the surface (so that
+        both faces keep the mesh's orientation): None when it cannot share the chain, else its orientation."""
+        if len(self.sides) != 1 or seq not in (self.seq, self.seq[::-1]):
+            return None
+        q, _, fwd = self.sides[0]
+        forward = seq == self.seq
+        # a slit (both sides on one face) needs a seam edge, which BRepCheck rejects on an open surface: _unslit
+        if q == p or (forward ^ pieces[p].reverse) == (fwd ^ pieces[q].reverse):
+            return None
+        return forward
+
+
+def _border_gaps(fit: dict, uv: np.ndarray, X_row: np.ndarray, loops: list[np.ndarray]) -> list[np.ndarray]:
+    """Per loop (rows of uv), per border edge: the largest distance of the surface over the edge from the mesh
+    edge, sampled ``_EDGE_SAMPLES`` times (the edge's tolerance in the STEP file)."""
+    a = np.concatenate(loops)
+    b = np.concatenate([np.roll(lp, -1) for lp in loops])
+    s = np.linspace(0.0, 1.0, _EDGE_SAMPLES)[None, :, None]
+    P = ((1 - s) * uv[a][:, None] + s * uv[b][:, None]).reshape(-1, 2)
+    X = ((1 - s) * X_row[a][:, None] + s * X_row[b][:, None]).reshape(-1, 3)
+    d = _deviations(fit["poles"].reshape(-1, 3), fit["tu"], fit["tv"], P, X).reshape(len(a), -1).max(axis=1)
+    return np.split(d, np.cumsum([len(lp) for lp in loops])[:-1])
+
+
+def _border_corners(pieces: list[_Piece], uv_vertex: np.ndarray) -> set[int]:
+    """The mesh vertices where a chain of border edges ends: where a face's border turns to another neighbour (or
+    to none), where more than two border edges meet and, on a loop without such a vertex, its lowest and highest
+    mesh vertex (both faces along a closed border then cut it at the same vertices)."""
+    faces_of: dict = {}
+    for p, piece in enumerate(pieces):
+        for lp in piece.loops:
+            m = uv_vertex[lp].tolist()
+            for a, b in zip(m, m[1:] + m[:1], strict=True):
+                faces_of.setdefault((min(a, b), max(a, b)), []).append(p)
+    at: dict = {}
+    for key in faces_of:
+        for v in key:
+            at.setdefault(v, []).append(key)
+    corners = {v for v, keys in at.items()
+               if len(keys) != 2 or sorted(faces_of[keys[0]]) != sorted(faces_of[keys[1]])}
+    for piece in pieces:
+        for lp in piece.loops:
+            m = uv_vertex[lp]
+            if corners.isdisjoint(m.tolist()):
+                corners.update((int(m.min()), int(m.max())))
+    return corners
+
+
+def _chain_positions(m: list[int], corners: set[int]) -> list[list[int]]:
+    """A loop's positions (m: their mesh vertices) cut at the corners: per chain, its consecutive positions from
+    one corner to the next, round the loop (one corner: the whole loop, back to it)."""
+    n = len(m)
+    cuts = [i for i, v in enumerate(m) if v in corners]
+    out = []
+    for j, i in enumerate(cuts):
+        span = (cuts[(j + 1) % len(cuts)] - i) % n or n
+        out.append([(i + s) % n for s in range(span + 1)])
+    return out
+
+
+def _chains(pieces: list[_Piece], uv_vertex: np.ndarray, share: bool) -> tuple[list[_Chain], list[list[list]]]:
+    """The border chains of all pieces and, per piece and loop, its chains in order, each (chain, forward?). With
+    ``share``, the faces on both sides of a chain use the same one (opposite ways round); else each its own."""
+    corners = _border_corners(pieces, uv_vertex)
+    chains: list[_Chain] = []
+    index: dict = {}
+    wires = []
+    for p, piece in enumerate(pieces):
+        wires.append([])
+        for lp, gaps in zip(piece.loops, piece.gaps, strict=True):
+            m = uv_vertex[lp].tolist()
+            wire = []
+            for pos in _chain_positions(m, corners):
+                seq = [m[i] for i in pos]
+                key = tuple(sorted(seq))
+                chain = index.get(key) if share else None
+                forward = None if chain is None else chain.joins(seq, p, pieces)
+                if forward is None:
+                    chain, forward = _Chain(seq), True
+                    chains.append(chain)
+                    index.setdefault(key, chain)
+                chain.sides.append((p, lp[pos] if forward else lp[pos][::-1], forward))
+                chain.gap = max(chain.gap, float(gaps[pos[:-1]].max()))
+                wire.append((chain, forward))
+            wires[-1].append(wire)
+    return chains, wires
+
+
 # ---------------------------------------------------------------------------------------------- OpenCascade part
 def _occ_surface(fit: dict):
     # OCP 8 (OpenCascade 8.0): the NCollection arrays are OCP.collections' templates
@@ -442,51 +596,118 @@ def _occ_surface(fit: dict):
     return Geom_BSplineSurface(poles, uk, vk, um, vm, DEGREE, DEGREE)
 
 
-def _occ_face(surface, uv: np.ndarray, loops: list[np.ndarray], reverse: bool, tol3d: float):
-    """A face of ``surface`` trimmed by the uv loops (the first is the outer one, counter-clockwise)."""
-    from OCP.BRepBuilderAPI import (
-        BRepBuilderAPI_MakeEdge,
-        BRepBuilderAPI_MakeFace,
-        BRepBuilderAPI_MakeVertex,
-        BRepBuilderAPI_MakeWire,
-    )
-    from OCP.BRepLib import BRepLib
-    from OCP.Geom2d import Geom2d_Line
-    from OCP.gp import gp_Dir2d, gp_Pnt2d
-    from OCP.ShapeFix import ShapeFix_Face
-    from OCP.TopoDS import TopoDS
+def _polyline(points: np.ndarray, d: int):
+    """A degree-1 B-spline curve (3D for d = 3, 2D for d = 2) through the points (k,d), parameter 0..k-1."""
+    from OCP.collections import Array1_double, Array1_gp_Pnt, Array1_gp_Pnt2d, Array1_int
+    from OCP.Geom import Geom_BSplineCurve
+    from OCP.Geom2d import Geom2d_BSplineCurve
+    from OCP.gp import gp_Pnt, gp_Pnt2d
 
-    def wire(lp):
-        P = uv[lp]
-        verts = [BRepBuilderAPI_MakeVertex(surface.Value(float(u), float(v))).Vertex() for u, v in P]
-        mw = BRepBuilderAPI_MakeWire()
-        for i in range(len(lp)):
-            j = (i + 1) % len(lp)
-            d = P[j] - P[i]
-            length = float(np.hypot(*d))
-            if not length > 0:
-                raise HeatparamError("cannot write STEP: two consecutive border vertices share their uv")
-            line = Geom2d_Line(gp_Pnt2d(*map(float, P[i])), gp_Dir2d(*map(float, d / length)))
-            me = BRepBuilderAPI_MakeEdge(line, surface, verts[i], verts[j], 0.0, length)
-            if not me.IsDone():
-                raise HeatparamError("cannot write STEP: a trimming edge could not be built (degenerate border edge)")
-            mw.Add(me.Edge())
-        if not mw.IsDone():
-            raise HeatparamError("cannot write STEP: a chart border does not close into a wire")
-        return mw.Wire()
+    k = len(points)
+    poles = Array1_gp_Pnt(1, k) if d == 3 else Array1_gp_Pnt2d(1, k)
+    make = gp_Pnt if d == 3 else gp_Pnt2d
+    knots, mults = Array1_double(1, k), Array1_int(1, k)
+    for i, p in enumerate(points.tolist()):
+        poles.SetValue(i + 1, make(*p))
+        knots.SetValue(i + 1, float(i))
+        mults.SetValue(i + 1, 2 if i in (0, k - 1) else 1)
+    return (Geom_BSplineCurve if d == 3 else Geom2d_BSplineCurve)(poles, knots, mults, 1)
 
-    mf = BRepBuilderAPI_MakeFace(surface, wire(loops[0]), True)
-    for lp in loops[1:]:
-        mf.Add(wire(lp))
-    face = mf.Face()
-    BRepLib.BuildCurves3d_s(face, min(1e-5, 0.01 * tol3d))
-    fix = ShapeFix_Face(face)
-    fix.SetPrecision(0.01 * tol3d)
-    fix.Perform()
-    face = TopoDS.Face(fix.Face())
-    if reverse:
-        face = TopoDS.Face(face.Reversed())
-    return face
+
+def _occ_edges(chains: list[_Chain], pieces: list[_Piece], uv: np.ndarray, X_row: np.ndarray, floor: float) -> float:
+    """Make every chain's edge (``chain.edge``): its 3D curve the mesh's border polyline, one pcurve per face (the
+    uv polyline on its surface), its tolerance the largest gap between them (x ``_EDGE_MARGIN``, at least
+    ``floor``); the vertices, one per mesh vertex, as tolerant as their edges. Returns the largest edge
+    tolerance."""
+    from OCP.BRep import BRep_Builder
+    from OCP.gp import gp_Pnt
+    from OCP.TopAbs import TopAbs_FORWARD, TopAbs_REVERSED
+    from OCP.TopLoc import TopLoc_Location
+    from OCP.TopoDS import TopoDS_Edge, TopoDS_Vertex
+
+    bld, loc = BRep_Builder(), TopLoc_Location()
+    verts: dict = {}
+    vtol: dict = {}
+    for chain in chains:
+        tol = max(_EDGE_MARGIN * chain.gap, floor)
+        rows = chain.sides[0][1]
+        for v, r in ((chain.seq[0], rows[0]), (chain.seq[-1], rows[-1])):
+            if v not in verts:
+                verts[v] = TopoDS_Vertex()
+                bld.MakeVertex(verts[v], gp_Pnt(*X_row[r].tolist()), tol)
+            vtol[v] = max(vtol.get(v, 0.0), tol)
+        edge = TopoDS_Edge()
+        bld.MakeEdge(edge, _polyline(X_row[rows], 3), tol)
+        bld.Add(edge, verts[chain.seq[0]].Oriented(TopAbs_FORWARD))
+        bld.Add(edge, verts[chain.seq[-1]].Oriented(TopAbs_REVERSED))
+        for p, r, _ in chain.sides:
+            bld.UpdateEdge(edge, _polyline(uv[r], 2), pieces[p].surface, loc, tol)
+        bld.Range(edge, 0.0, float(len(rows) - 1))
+        bld.SameParameter(edge, True)
+        bld.SameRange(edge, True)
+        chain.edge = edge
+    for v, t in vtol.items():
+        bld.UpdateVertex(verts[v], t)
+    return max(max(_EDGE_MARGIN * c.gap, floor) for c in chains)
+
+
+def _occ_faces(pieces: list[_Piece], wires: list[list[list]], floor: float) -> list:
+    """The face of every piece: its surface bounded by its loops' wires of chain edges, reversed for a mirrored
+    map (its normal then follows the mesh's)."""
+    from OCP.BRep import BRep_Builder
+    from OCP.TopLoc import TopLoc_Location
+    from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Wire
+
+    bld = BRep_Builder()
+    faces = []
+    for piece, loops in zip(pieces, wires, strict=True):
+        face = TopoDS_Face()
+        bld.MakeFace(face, piece.surface, TopLoc_Location(), floor)
+        for loop in loops:
+            wire = TopoDS_Wire()
+            bld.MakeWire(wire)
+            for chain, forward in loop:
+                bld.Add(wire, chain.edge if forward else chain.edge.Reversed())
+            wire.Closed(True)
+            bld.Add(face, wire)
+        faces.append(TopoDS.Face(face.Reversed()) if piece.reverse else face)
+    return faces
+
+
+def _joined(faces: list, chains: list[_Chain]):
+    """The faces as shells, one per connected set (faces sharing chains); a closed one (every chain with two
+    sides) as a solid, outward. One part: itself, else a compound of them."""
+    from OCP.BRep import BRep_Builder
+    from OCP.BRepGProp import BRepGProp
+    from OCP.GProp import GProp_GProps
+    from OCP.TopoDS import TopoDS_Shell, TopoDS_Solid
+
+    bld = BRep_Builder()
+    pairs = np.array([(c.sides[0][0], c.sides[1][0]) for c in chains if len(c.sides) == 2], dtype=np.int64)
+    lab = _components(len(faces), *pairs.reshape(-1, 2).T)
+    open_ = {c.sides[0][0] for c in chains if len(c.sides) == 1}
+    parts = []
+    for k in range(lab.max() + 1):
+        shell = TopoDS_Shell()
+        bld.MakeShell(shell)
+        members = np.flatnonzero(lab == k)
+        for p in members:
+            bld.Add(shell, faces[p])
+        if open_.isdisjoint(members.tolist()):
+            shell.Closed(True)
+            solid = TopoDS_Solid()
+            bld.MakeSolid(solid)
+            bld.Add(solid, shell)
+            props = GProp_GProps()
+            BRepGProp.VolumeProperties_s(solid, props)
+            if props.Mass() < 0:  # the shell faces inwards (a mesh oriented inwards): turned round
+                solid = TopoDS_Solid()
+                bld.MakeSolid(solid)
+                bld.Add(solid, shell.Reversed())
+            parts.append(solid)
+        else:
+            parts.append(shell)
+    return parts[0] if len(parts) == 1 else _compound(parts)
 
 
 def _valid(shape) -> bool:
@@ -500,7 +721,8 @@ def _area(shape) -> float:
     from OCP.GProp import GProp_GProps
 
     props = GProp_GProps()
-    BRepGProp.SurfaceProperties_s(shape, props)
+    # adaptive, to a relative 1e-6: the fixed Gauss rule was 14% short on a face bounded by long polyline edges
+    BRepGProp.SurfaceProperties_s(shape, props, 1e-6)
     return float(props.Mass())
 
 
@@ -609,13 +831,11 @@ def write_step(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.nda
     _require_ocp()
     V, F, uv, Fuv, uv_vertex, chart, tol = _checked_inputs(V, F, uv, Fuv, uv_vertex, chart, tolerance, units)
     region, creases = _regions(V, F, Fuv, uv_vertex, chart, tol)
+    region, slit_cuts = _unslit(region, Fuv, uv, uv_vertex)
     diag = float(np.linalg.norm(V.max(0) - V.min(0)))
     fitted = _fitted_faces(region, chart, Fuv, uv, V[uv_vertex], tol, diag, units)
-    faces, reports, notes = fitted.faces, fitted.reports, fitted.notes
-    # two faces' borders are each within max_border_deviation of the mesh: they meet within twice that
-    gap = 2.0 * max(f["max_border_deviation"] for f in reports)
-    sewing = float(np.clip(1.05 * gap, 0.01 * tol, 2.0 * tol))
-    shape, sewn, valid = _written(faces, Path(path), units, name, sewing, notes)
+    reports, notes = fitted.reports, fitted.notes
+    shape, sewn, valid = _written(fitted, uv, uv_vertex, V[uv_vertex], tol, Path(path), units, name)
     shells, free = _topology(shape)
     if free and _closed(F):
         notes.append(f"the mesh is closed but the STEP shape has {free} free edges (not sewn shut)")
@@ -624,10 +844,10 @@ def write_step(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.nda
     e1, e2 = V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]
     dev = np.concatenate(fitted.devs)
     return {
-        "tolerance": tol, "units": units, "degree": [DEGREE, DEGREE], "faces": len(faces), "sewn": sewn,
-        "valid": valid, "shells": shells, "free_edges": free,
+        "tolerance": tol, "units": units, "degree": [DEGREE, DEGREE], "faces": len(reports), "sewn": sewn,
+        "valid": valid, "shells": shells, "solids": _count(shape, "SOLID"), "free_edges": free,
         "area_mesh": float(0.5 * np.linalg.norm(np.cross(e1, e2), axis=1).sum()), "area_faces": _area(shape),
-        "creases": creases, "tolerance_splits": fitted.splits,
+        "creases": creases, "slit_cuts": slit_cuts, "tolerance_splits": fitted.splits,
         "max_deviation": max(f["max_deviation"] for f in reports),
         "max_vertex_deviation": max(f["max_vertex_deviation"] for f in reports),
         "max_surface_deviation": max(f["max_surface_deviation"] for f in reports),
@@ -640,10 +860,10 @@ def write_step(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.nda
 
 
 class _Fitted(NamedTuple):
-    """The STEP faces of a map: OpenCascade faces, their reports, their vertex deviations, the warnings so far and
-    how many faces were split in two because their fit missed the tolerance."""
+    """The STEP faces of a map before their topology: the fitted pieces, their reports, their vertex deviations,
+    the warnings so far and how many faces were split because their fit missed the tolerance."""
 
-    faces: list
+    pieces: list[_Piece]
     reports: list[dict]
     devs: list[np.ndarray]
     notes: list[str]
@@ -652,7 +872,7 @@ class _Fitted(NamedTuple):
 
 def _fitted_faces(region: np.ndarray, chart: np.ndarray, Fuv: np.ndarray, uv: np.ndarray, X_row: np.ndarray,
                   tol: float, diag: float, units: str) -> _Fitted:
-    """One fitted, trimmed face per region (:func:`_region_face`); a region whose fit misses the tolerance is split
+    """One fitted piece per region (:func:`_region_face`); a region whose fit misses the tolerance is split
     (:func:`_split`, its failing triangles carved out first) up to ``_MAX_SPLITS`` deep, and what still misses
     is reported in the notes."""
     out = _Fitted([], [], [], [], 0)
@@ -660,43 +880,62 @@ def _fitted_faces(region: np.ndarray, chart: np.ndarray, Fuv: np.ndarray, uv: np
     splits = 0
     while todo:
         fr, depth = todo.pop(0)
-        face, report, dev, off = _region_face(len(out.faces), int(chart[fr[0]]), Fuv[fr], uv, X_row, tol)
+        piece, report, dev, off = _region_face(len(out.pieces), int(chart[fr[0]]), Fuv[fr], uv, X_row, tol)
         if not report["within_tolerance"] and len(fr) > 1 and depth < _MAX_SPLITS:
             parts = _split(uv, Fuv[fr], off if depth == 0 else None)
             todo[:0] = [(fr[p], depth + 1) for p in parts]
             splits += 1
             continue
-        report["face"] = len(out.faces)
-        out.faces.append(face)
+        report["face"] = len(out.pieces)
+        out.pieces.append(piece)
         out.reports.append(report)
         out.devs.append(dev)
         if not report["within_tolerance"]:
             out.notes.append(_miss(report, tol, diag, units))
-        if not report["valid"]:
-            out.notes.append(f"STEP face {report['face']} (chart {report['chart']}): OpenCascade's BRepCheck reports "
-                             "it invalid")
     return out._replace(splits=splits)
 
 
-def _written(faces: list, path: Path, units: str, name: str | None, sewing: float, notes: list[str]
-             ) -> tuple[object, bool, bool]:
-    """Assemble the faces (sewn where they share borders), write them and read the file back: (the shape written,
-    sewn?, valid as read back); what went wrong goes into ``notes``.
+def _built(pieces: list[_Piece], uv: np.ndarray, uv_vertex: np.ndarray, X_row: np.ndarray, tol: float,
+           share: bool) -> tuple[object, list[bool], float]:
+    """The OpenCascade shape of the pieces: (with ``share``, faces joined by shared edges into shells or solids,
+    :func:`_joined`; else a compound of faces with edges of their own), each face's validity, the largest edge
+    tolerance."""
+    chains, wires = _chains(pieces, uv_vertex, share)
+    floor = 1e-3 * tol
+    precision = _occ_edges(chains, pieces, uv, X_row, floor)
+    faces = _occ_faces(pieces, wires, floor)
+    shape = _joined(faces, chains) if share else _compound(faces)
+    return shape, [_valid(f) for f in faces], precision
 
-    The file declares the sewing tolerance as its uncertainty: with the default (the least tolerance of the shape,
-    1e-7) OpenCascade's reader filled the gaps of up to 2 ``_BORDER`` tol at every sewn vertex with tiny edges, and
-    the face of two sewn charts read back could not be meshed. Sewn faces that read back invalid (the cow's 97) are
-    written again unjoined."""
-    shape, sewn = _assemble(faces, sewing, notes)
-    _write_shape(shape, path, UNITS[units][0], name, precision=sewing)
-    if sewn and not _valid(read_step(path)[0]):
-        shape, sewn = _compound(faces), False
-        _write_shape(shape, path, UNITS[units][0], name, precision=sewing)
-        notes.append("the sewn faces read back invalid: they are written unjoined")
-    valid = _valid(read_step(path)[0])
+
+def _written(fitted: _Fitted, uv: np.ndarray, uv_vertex: np.ndarray, X_row: np.ndarray, tol: float, path: Path,
+             units: str, name: str | None) -> tuple[object, bool, bool]:
+    """Build the faces joined along their shared borders (:func:`_built`), write them and read the file back:
+    (the shape written, joined?, valid as read back); what went wrong goes into ``fitted.notes`` and the faces'
+    reports get their validity.
+
+    The file declares the largest edge tolerance as its uncertainty: with the default (the least tolerance of the
+    shape) OpenCascade's reader filled the gaps at vertices with tiny edges. A joined shape that is (or reads
+    back) invalid is written again as separate faces."""
+    notes = fitted.notes
+    shape, valid_faces, precision = _built(fitted.pieces, uv, uv_vertex, X_row, tol, share=True)
+    joined = _valid(shape)
+    if joined:
+        _write_shape(shape, path, UNITS[units][0], name, precision=precision)
+        joined = _valid(read_step(path)[0])
+    if not joined:
+        shape, valid_faces, precision = _built(fitted.pieces, uv, uv_vertex, X_row, tol, share=False)
+        _write_shape(shape, path, UNITS[units][0], name, precision=precision)
+        notes.append("the faces joined along their borders are (or read back) invalid: they are written unjoined")
+    for report, ok in zip(fitted.reports, valid_faces, strict=True):
+        report["valid"] = ok
+        if not ok:
+            notes.append(f"STEP face {report['face']} (chart {report['chart']}): OpenCascade's BRepCheck reports "
+                         "it invalid")
+    valid = joined or _valid(read_step(path)[0])
     if not valid:
         notes.append("the STEP file reads back invalid (OpenCascade's BRepCheck)")
-    return shape, sewn, valid
+    return shape, joined, valid
 
 
 class StepToleranceWarning(UserWarning):
@@ -818,9 +1057,9 @@ def _split(uv: np.ndarray, Fr: np.ndarray, off: np.ndarray | None) -> list[np.nd
 
 
 def _region_face(k: int, c: int, Fr: np.ndarray, uv: np.ndarray, X_row: np.ndarray, tol: float
-                 ) -> tuple[object, dict, np.ndarray, np.ndarray]:
-    """Fit one STEP face (the triangles Fr (mr,3), rows of uv, of chart c; face number k) and trim it by their
-    boundary loops: (the face, its report entry, its vertex deviations, which triangles are off the tolerance)."""
+                 ) -> tuple[_Piece, dict, np.ndarray, np.ndarray]:
+    """Fit one STEP face (the triangles Fr (mr,3), rows of uv, of chart c; face number k): (the piece: its surface
+    and boundary loops, its report entry, its vertex deviations, which triangles are off the tolerance)."""
     rows = np.unique(Fr)
     loops = boundary_loops(Fr)
     on_border = np.zeros(len(uv), dtype=bool)
@@ -839,7 +1078,7 @@ def _region_face(k: int, c: int, Fr: np.ndarray, uv: np.ndarray, X_row: np.ndarr
 
     fit = _fit_surface(uv[rows], X_row[rows], on_border[rows], data, checks, tol, intervals)
     check = fit["check"]
-    face = _piece_face(_occ_surface(fit), uv, loops, tol)
+    piece = _piece(fit, uv, X_row, loops)
     dev = fit["dev"]
     # where: the worst of the vertices, the fitted samples and the checked ones
     where = [(dev, X_row[rows]), (fit["dev_fit"], data.X), (fit["dev_check"], check.X)]
@@ -852,25 +1091,27 @@ def _region_face(k: int, c: int, Fr: np.ndarray, uv: np.ndarray, X_row: np.ndarr
         "knot_rounds": int(fit["rounds"]),
         "max_deviation": max(worst_v, worst_s), "max_vertex_deviation": worst_v, "max_surface_deviation": worst_s,
         "deviation_over_tolerance": max(worst_v, worst_s) / tol, "worst_at": [float(x) for x in at],
-        "max_border_deviation": fit["dev_border"], "within_tolerance": fit["within"], "valid": _valid(face),
+        "max_border_deviation": fit["dev_border"], "within_tolerance": fit["within"], "valid": True,
     }
     # the triangles off the tolerance: a sample in them, or a corner, deviates by more than tol
     off = np.zeros(len(Fr), dtype=bool)
     off[data.face[fit["dev_fit"] > tol]] = True
     off[check.face[fit["dev_check"] > tol]] = True
     off |= np.isin(Fr, rows[dev > tol]).any(axis=1)
-    return face, report, dev, off
+    return piece, report, dev, off
 
 
-def _piece_face(surface, uv: np.ndarray, loops: list[np.ndarray], tol: float):
-    """The face of ``surface`` trimmed by the boundary loops (rows of uv) of one connected piece of a chart."""
+def _piece(fit: dict, uv: np.ndarray, X_row: np.ndarray, loops: list[np.ndarray]) -> _Piece:
+    """The piece of a fitted surface bounded by the loops (rows of uv) of one connected piece of a chart: the outer
+    loop first and counter-clockwise on the surface, holes clockwise (a mirrored map's loops reversed, its face
+    reversed)."""
     areas = np.array([polygon_area(uv[lp]) for lp in loops])
     outer = int(np.argmax(np.abs(areas)))
-    reverse = areas[outer] < 0  # a mirrored map: uv loops run clockwise, the surface normal is flipped
+    reverse = bool(areas[outer] < 0)  # a mirrored map: uv loops run clockwise, the surface normal is flipped
     ordered = [loops[outer]] + [lp for i, lp in enumerate(loops) if i != outer]
     if reverse:
         ordered = [lp[::-1] for lp in ordered]
-    return _occ_face(surface, uv, ordered, reverse, tol)
+    return _Piece(_occ_surface(fit), ordered, reverse, _border_gaps(fit, uv, X_row, ordered))
 
 
 def _compound(faces: list):
@@ -884,28 +1125,6 @@ def _compound(faces: list):
     for f in faces:
         bld.Add(comp, f)
     return comp
-
-
-def _assemble(faces: list, tol: float, warnings: list[str]) -> tuple:
-    """The faces sewn (tolerance ``tol``: twice the largest deviation of a face's border from the mesh, so that two
-    faces sharing a border are sewn there; within 2 fit tolerances, each side being within it) when that keeps
-    them valid, else a compound of them (one face: itself). A single face is sewn too: a chart with a
-    seam inside one face meets itself there. Returns (shape, sewn); appends to ``warnings`` when sewing was
-    refused."""
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_Sewing
-
-    comp = _compound(faces)
-    sew = BRepBuilderAPI_Sewing(tol)
-    for f in faces:
-        sew.Add(f)
-    sew.Perform()
-    sewed = sew.SewedShape()
-    if not sewed.IsNull() and _valid(sewed):
-        return sewed, True
-    if len(faces) == 1:
-        return faces[0], False
-    warnings.append("the STEP faces were not sewn (sewing broke validity): they are written unjoined")
-    return comp, False
 
 
 def read_step(path: str | os.PathLike, units: str | None = None):
@@ -953,6 +1172,16 @@ def _distances(shape, P: np.ndarray) -> np.ndarray:
     rest = np.flatnonzero(~np.isfinite(dist))
     if len(rest):
         _edge_distances(shape, pts, rest, dist)
+    # a point on a face's border can have its foot on another face's border far away (a cube's corner on the
+    # opposite side) and none on its own faces: the points that could hold the max are measured to the edges too
+    done = np.zeros(len(dist), dtype=bool)
+    done[rest] = True
+    while len(dist):
+        todo = np.flatnonzero(~done & (dist >= 0.9 * dist.max()))
+        if not len(todo):
+            break
+        _edge_distances(shape, pts, todo, dist)
+        done[todo] = True
     return dist
 
 
@@ -1017,7 +1246,7 @@ def _project_global(faces: list[tuple], pts: list, prec: float, dist: np.ndarray
 
 
 def _edge_distances(shape, pts: list, rest: np.ndarray, dist: np.ndarray) -> None:
-    """Set ``dist[rest]`` to the distance of those points (no foot on a face) to the shape's edges.
+    """Lower ``dist[rest]`` to the distance of those points to the shape's edges (where none has a foot on a face).
 
     The nearest point of the shape is then on an edge (the faces' borders), unless an interior local minimum is
     nearer; a point on an edge is a point of the shape, so this is an upper bound too (and ~20x faster than
@@ -1043,34 +1272,41 @@ def _edge_distances(shape, pts: list, rest: np.ndarray, dist: np.ndarray) -> Non
         ds.LoadS1(BRepBuilderAPI_MakeVertex(pts[i]).Vertex())
         if not ds.Perform() or not ds.IsDone():
             raise HeatparamError("OpenCascade could not measure a distance to the shape")
-        dist[i] = ds.Value()
+        dist[i] = min(dist[i], ds.Value())
 
 
 def tessellation(shape, deflection: float) -> list[tuple]:
     """Per face of ``shape``: (the face, nodes (p,3), triangles (t,3)) of OpenCascade's tessellation
     (``BRepMesh_IncrementalMesh``, linear ``deflection``, angular 0.5 rad, sequential); a face BRepMesh could not
-    mesh gives empty arrays. The nodes lie on the faces' surfaces, inside their trims."""
+    mesh gives empty arrays. The nodes lie on the faces' surfaces, inside their trims.
+
+    A copy is meshed, its tolerances set to a hundredth of the deflection: BRepMesh meshes a face no finer than
+    twice its largest tolerance (the cow's shared edges, up to 1.4 tol: nodes 2.4 tol apart from the mesh)."""
     from OCP.BRep import BRep_Tool
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
     from OCP.BRepMesh import BRepMesh_IncrementalMesh
+    from OCP.ShapeFix import ShapeFix_ShapeTolerance
     from OCP.TopAbs import TopAbs_FACE
     from OCP.TopExp import TopExp_Explorer
     from OCP.TopLoc import TopLoc_Location
     from OCP.TopoDS import TopoDS
 
-    BRepMesh_IncrementalMesh(shape, deflection, False, 0.5, False)
+    copy = BRepBuilderAPI_Copy(shape).Shape()
+    ShapeFix_ShapeTolerance().SetTolerance(copy, 0.01 * deflection)
+    BRepMesh_IncrementalMesh(copy, deflection, False, 0.5, False)
     out = []
-    ex = TopExp_Explorer(shape, TopAbs_FACE)
+    ex, mine = TopExp_Explorer(shape, TopAbs_FACE), TopExp_Explorer(copy, TopAbs_FACE)
     while ex.More():
-        face = TopoDS.Face(ex.Current())
         loc = TopLoc_Location()
-        tri = BRep_Tool.Triangulation_s(face, loc)
+        tri = BRep_Tool.Triangulation_s(TopoDS.Face(mine.Current()), loc)
         P, T = np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
         if tri is not None and tri.NbNodes():
             trsf = loc.Transformation()
             P = np.array([tri.Node(i).Transformed(trsf).Coord() for i in range(1, tri.NbNodes() + 1)])
             T = np.array([tri.Triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64) - 1
-        out.append((face, P, T))
+        out.append((TopoDS.Face(ex.Current()), P, T))
         ex.Next()
+        mine.Next()
     return out
 
 
