@@ -8,7 +8,8 @@ read back, tessellated and compared with the mesh both ways).
 
 1. **Faces.** Each chart's triangles, connected through shared uv edges, cut along its creases (:func:`_creases`:
    dihedral angle >= 60°, or >= 20° where the triangles beside the edge are too large for a smooth surface to turn
-   within the tolerance); pieces under 16 triangles join a neighbour. Each piece is one STEP face.
+   within the tolerance); pieces under 16 triangles join a neighbour; slits are cut (4.). Each piece is one STEP
+   face.
 2. **Fit.** Per face, a clamped bicubic B-spline surface ``S(u,v)`` over the face's padded uv rectangle, fitted by
    penalized least squares to the mesh at its vertices, edge midpoints and centroids (the map is piecewise linear:
    the mesh's point at any uv is the barycentric one), plus a small second-difference penalty on the control net
@@ -23,17 +24,21 @@ read back, tessellated and compared with the mesh both ways).
 3. **Where the fit misses.** A face still off the tolerance is split (:func:`_split`): its failing triangles and
    two rings around them carved out as faces of their own, then halves, up to 12 deep; a single triangle is a
    plane, which the fit meets exactly. What still misses is written as it is, with a :class:`StepToleranceWarning`.
-4. **Trim.** The face's boundary loops in uv (outer counter-clockwise, holes clockwise) become one straight 2D
-   segment per boundary edge on the surface (``BRepBuilderAPI_MakeEdge(Geom2d segment, surface, v1, v2)``), wires,
-   a face (``BRepBuilderAPI_MakeFace`` + ``Add`` per hole), 3D curves by ``BRepLib.BuildCurves3d_s`` and
-   ``ShapeFix_Face``.
-5. **Assemble and write.** The faces sewn (``BRepBuilderAPI_Sewing``, tolerance twice the largest border
-   deviation: a closed mesh gives one closed shell), kept when ``BRepCheck_Analyzer`` still calls the result valid
-   (else a compound of the faces, with a warning). The file declares the sewing tolerance as its uncertainty (with
-   OpenCascade's default, 1e-7, its reader filled the sewn gaps with tiny edges and could not mesh the faces).
-   ``STEPControl_Writer`` writes to a temporary file beside the output, renamed over it on success. The coordinates
-   are written unchanged and the file declares ``units``; the header's time stamp is fixed (same input, same
-   file).
+4. **Topology.** Faces share their border edges (:func:`_chains`): the border of every face is cut at its corners
+   (mesh vertices where the neighbour changes, :func:`_border_corners`) into runs of mesh edges, and each run is
+   one edge used by the faces on both sides (opposite ways round): its 3D curve the mesh's border polyline, one
+   uv polyline per face as its pcurve (degree-1 B-splines of one parameter), one vertex per mesh vertex, its
+   tolerance 1.5 x the largest gap measured between the polyline and each surface (:func:`_border_gaps`). No
+   sewing: sewing each face's own border (its vertices on its own surface, up to a tolerance apart across a
+   border) cut the cow's edges into slivers 0.01 tolerances long, left 91 free edges and read back invalid.
+   A region holding both sides of a chart's seam (a slit) is cut across first (:func:`_unslit`): a face bounded by
+   both sides needs a seam edge, which BRepCheck rejects on a surface that is not closed.
+5. **Assemble and write.** One shell per connected set of faces, a closed one (no edge with one face) a solid,
+   outward; kept when ``BRepCheck_Analyzer`` calls it valid before and after the round trip (else the faces with
+   edges of their own, unjoined, with a warning). The file declares the largest edge tolerance as its uncertainty.
+   ``STEPControl_Writer`` writes to a temporary file beside the output, renamed over it on success. The
+   coordinates are written unchanged and the file declares ``units``; the header's time stamp is fixed (same
+   input, same file).
 """
 
 from __future__ import annotations
@@ -282,7 +287,7 @@ class _SurfaceFit:
     No knot is added for a check sample: a surface with knots finer than its data ripples between them (halving the
     knots at the check samples made the developable part's deviation grow from 1.7 to 44 tolerances in 7 rounds).
     The fit ends when no check sample deviates. Points on the border are held to ``_BORDER`` tol and weigh
-    ``_BORDER_WEIGHT``: adjacent faces then meet within 2 ``_BORDER`` tol and are sewn with edges that tight."""
+    ``_BORDER_WEIGHT``: adjacent faces then meet within 2 ``_BORDER`` tol, and so do their shared edges."""
 
     def __init__(self, uv_v, X_v, border_v, fit: _Samples, checks, tol: float):
         self.uv_v, self.X_v, self.border_v, self.fit, self.checks, self.tol = uv_v, X_v, border_v, fit, checks, tol
@@ -883,13 +888,14 @@ def write_step(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.nda
 
     Returns
     -------
-    dict, the fit report (docs/formats.md, "STEP"): ``tolerance``, ``faces``, ``sewn``, ``valid`` (as read back),
-    ``shells``, ``free_edges``, ``area_mesh``, ``area_faces``, ``creases``, ``tolerance_splits``; the achieved
+    dict, the fit report (docs/formats.md, "STEP"): ``tolerance``, ``faces``, ``sewn`` (joined by shared edges),
+    ``valid`` (as read back), ``shells``, ``solids``, ``free_edges``, ``area_mesh``, ``area_faces``, ``creases``,
+    ``slit_cuts``, ``tolerance_splits``; the achieved
     deviations both ways, ``max_vertex_deviation`` (``|S(uv_i) - V_i|``) and ``max_surface_deviation`` (``|S(uv) -
     X(uv)|`` at points inside every triangle; both upper bounds of the distances), ``max_deviation``,
     ``rms_deviation``, ``within_tolerance``; ``step_faces`` (per face: chart, size, deviations, ``worst_at``,
     ``within_tolerance``, ``valid``), ``charts``; ``warnings``: one line per face off the tolerance (where, by how
-    much), invalid face or shape, free edges of a closed mesh, faces left unsewn, each also issued as a
+    much), invalid face or shape, free edges of a closed mesh, faces left unjoined, each also issued as a
     :class:`StepToleranceWarning` (a caller that prints the list itself can filter that category).
     """
     t0 = time.perf_counter()
@@ -903,7 +909,7 @@ def write_step(path: str | os.PathLike, V: np.ndarray, F: np.ndarray, uv: np.nda
     shape, sewn, valid = _written(fitted, uv, uv_vertex, V[uv_vertex], tol, Path(path), units, name)
     shells, free = _topology(shape)
     if free and _closed(F):
-        notes.append(f"the mesh is closed but the STEP shape has {free} free edges (not sewn shut)")
+        notes.append(f"the mesh is closed but the STEP shape has {free} free edges (not closed)")
     for note in notes:
         _warnings.warn(note, StepToleranceWarning, stacklevel=2)
     e1, e2 = V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]
@@ -1004,7 +1010,7 @@ def _written(fitted: _Fitted, uv: np.ndarray, uv_vertex: np.ndarray, X_row: np.n
 
 
 class StepToleranceWarning(UserWarning):
-    """A STEP face off the fit tolerance (or invalid, or left unsewn): the message says where and by how much."""
+    """A STEP face off the fit tolerance (or invalid, or left unjoined): the message says where and by how much."""
 
 
 def _miss(face: dict, tol: float, diag: float, units: str) -> str:
