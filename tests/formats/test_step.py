@@ -333,5 +333,4 @@ def test_banded_solve_matches_sparse():
         M = (B.T @ B).tocsr() + 1e-2 * step._smoothness(nu, nv)
         rhs = rng.random((nu * nv, 3))
         fit = step._SurfaceFit.__new__(step._SurfaceFit)
-        fit.ordering = None
         assert np.abs(fit.factored(M, nu, nv, rhs) - Factor(M.tocsc()).solve(rhs)).max() < 1e-10

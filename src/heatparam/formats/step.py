@@ -296,7 +296,7 @@ class _SurfaceFit:
         self.shortest = float(np.percentile(diam, 10)) / _FINEST if len(diam) else 0.0
         self.extra = []  # check samples fitted as data
         self.level = {}  # triangle -> the number of check samples it has in the data
-        self.ordering = None  # ((nu, nv), PARDISO's ordering of the last system of that size)
+        self.last = None  # (bu, bv, rows, B, W B, B^T W B) of the last solve (:meth:`normal`)
 
     def knots(self, intervals: int) -> tuple[np.ndarray, np.ndarray]:
         """The first breakpoints: a uniform grid over the padded parameter rectangle."""
@@ -340,10 +340,7 @@ class _SurfaceFit:
         border = np.concatenate([self.border_v, data.border])
         tu, tv = _clamped(bu), _clamped(bv)
         nu, nv = len(bu) + DEGREE - 1, len(bv) + DEGREE - 1
-        B = _design(uvd, tu, tv)
-        Bw = B.copy()  # W B, W the weights: B^T W B
-        Bw.data *= np.repeat(np.where(border, _BORDER_WEIGHT, 1.0), (DEGREE + 1) ** 2)
-        A = (Bw.T @ B).tocsr()
+        B, Bw, A = self.normal(uvd, border, bu, bv)
         M = A + (_PENALTY * A.diagonal().mean()) * _smoothness(nu, nv)
         C = self.factored(M, nu, nv, np.asarray(Bw.T @ X))
         dev_d = np.linalg.norm(B @ C - X, axis=1)
@@ -352,6 +349,21 @@ class _SurfaceFit:
                 "dev_check": None, "check": None, "rounds": rounds, "tu": tu, "tv": tv,
                 "dev_border": dev_d[: k + f][np.concatenate([self.border_v, self.fit.border])]}
         return best, uvd[dev_d > _SPLIT_AT * np.where(border, _BORDER * self.tol, self.tol)], border
+
+    def normal(self, uv: np.ndarray, border: np.ndarray, bu: np.ndarray, bv: np.ndarray) -> tuple:
+        """(B, W B, B^T W B) of the data at uv (N,2) on the breakpoints (bu, bv), W the weights (``border``). On the
+        knots of the last call the data only grew (check samples joined): its rows are reused, the new ones added."""
+        tu, tv = _clamped(bu), _clamped(bv)
+        last = self.last
+        k = 0 if last is None or not (np.array_equal(last[0], bu) and np.array_equal(last[1], bv)) else last[2]
+        B = _design(uv[k:], tu, tv)
+        Bw = B.copy()  # W B, W the weights: B^T W B
+        Bw.data *= np.repeat(np.where(border[k:], _BORDER_WEIGHT, 1.0), (DEGREE + 1) ** 2)
+        A = (Bw.T @ B).tocsr()
+        if k:
+            B, Bw, A = sp.vstack([last[3], B], format="csr"), sp.vstack([last[4], Bw], format="csr"), last[5] + A
+        self.last = (bu, bv, len(uv), B, Bw, A)
+        return B, Bw, A
 
     def factored(self, M: sp.csr_matrix, nu: int, nv: int, rhs: np.ndarray) -> np.ndarray:
         """M^-1 rhs, M (nu*nv, nu*nv) SPD with the bandwidth of the control net: banded Cholesky where it costs
@@ -372,13 +384,7 @@ class _SurfaceFit:
                                           check_finite=False)
             return out
         # PARDISO where installed from 10k control points (camelhead's 35k: 3.2 s vs CHOLMOD's 7.8 s, loaded machine)
-        backend = large_system_backend(n, "auto", min_unknowns=10_000)
-        # rounds on the same knots reuse PARDISO's fill-reducing ordering (the pattern barely changes)
-        same = self.ordering is not None and self.ordering[0] == (nu, nv) and backend == "pardiso"
-        factor = Factor(M.tocsc(), backend, ordering=self.ordering[1] if same else None)
-        if factor.ordering is not None:
-            self.ordering = ((nu, nv), factor.ordering)
-        return factor.solve(rhs)
+        return Factor(M.tocsc(), large_system_backend(n, "auto", min_unknowns=10_000)).solve(rhs)
 
     def check(self, best: dict) -> tuple[bool, np.ndarray | None]:
         """Measure the check samples of ``best``: (no sample deviates?, the deviating samples' uv when none of
