@@ -1,7 +1,7 @@
 """Reading meshes.
 
 OBJ, OFF, STL and PLY load through heatparam's own tolerant readers (``formats.readers``: comments in any byte
-encoding, every OBJ index form, PLY parsed by plyfile with its faces and triangle strips, one-line errors naming
+encoding, every OBJ index form, PLY with its faces and triangle strips (our own reader), one-line errors naming
 the file and line); glTF/GLB scenes through trimesh. The vertex order is kept exactly (no
 merging, no reordering; STL excepted, whose identical corners are merged). Quads and polygons are fan-triangulated.
 Plain triangle OBJs (``v x y z`` and three-corner ``f`` lines) take a vectorized fast path that reads exactly what

@@ -12,12 +12,11 @@ continuations, ``#`` comments; every other statement (``vt``, ``vn``, ``o``, ``g
 OFF: the ``[ST][C][N]OFF`` headers (per-vertex extras and per-face colours ignored), counts on the header line or
 the next, polygons fan-triangulated; binary, 4D and n-dimensional OFF are refused.
 STL: binary (recognized by its size: 84 + 50 bytes per triangle) or ASCII (``vertex x y z`` triples).
-PLY: parsed by plyfile (ASCII, binary of either endianness, every element), faces and triangle strips read here.
+PLY: parsed here (ASCII, binary of either endianness, every element), faces and triangle strips included.
 """
 
 from __future__ import annotations
 
-import io
 import re
 from pathlib import Path
 
@@ -344,25 +343,26 @@ def _ascii_header(p: Path, data: bytes) -> bytes:
 
 #: the names exporters give the list of a face's (or a strip's) vertex indices
 _PLY_INDEX_NAMES = ("vertex_indices", "vertex_index")
-#: read faces as triangles first: plyfile then maps a binary file's faces as one array (0.01 s for 200k faces where
-#: its row-by-row reader takes 0.6 s); a file with other polygons is read again row by row
-_PLY_TRIANGLES = {"face": dict.fromkeys(_PLY_INDEX_NAMES, 3)}
+#: PLY scalar type names → numpy type codes (both spellings of the standard)
+_PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+              "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+              "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
 
 
 def read_ply(p: Path) -> tuple[np.ndarray, np.ndarray]:
     """PLY as users have it → V (n,3) float64 in file order, F (m,3) int64.
 
-    ASCII or binary of either endianness, any numeric property types (plyfile parses every element); the ``vertex``
-    element's x, y, z; the ``face`` element's polygons (``vertex_indices`` or ``vertex_index``), fan-triangulated
-    in trimesh's order (heatparam's maps were made with it: :func:`_off_triangles`), then the triangles of a
-    ``tristrips`` element (:func:`strip_triangles`, the Stanford / VCG convention); other elements and properties
-    are ignored. A file of vertices only gives F of 0 rows (``load_mesh`` names it a point cloud)."""
+    ASCII or binary of either endianness, any numeric property types (:class:`_Ply` parses every element); the
+    ``vertex`` element's x, y, z; the ``face`` element's polygons (``vertex_indices`` or ``vertex_index``),
+    fan-triangulated in trimesh's order (heatparam's maps were made with it: :func:`_off_triangles`), then the
+    triangles of a ``tristrips`` element (:func:`strip_triangles`, the Stanford / VCG convention); other elements
+    and properties are ignored. A file of vertices only gives F of 0 rows (``load_mesh`` names it a point cloud)."""
     ply = _parse_ply(p)
     names = [e.name for e in ply.elements]
     if "vertex" not in names:
         raise _fail(p, "the PLY file has no 'vertex' element")
     vert = ply["vertex"].data
-    if not {"x", "y", "z"} <= set(vert.dtype.names or ()):
+    if not {"x", "y", "z"} <= set(vert):
         raise _fail(p, "the PLY 'vertex' element has no x, y, z properties")
     V = np.column_stack([vert["x"], vert["y"], vert["z"]]).astype(np.float64)
     tris = [np.zeros((0, 3), dtype=np.int64)]
@@ -395,15 +395,15 @@ def strip_triangles(strips: list) -> np.ndarray:
 def _ply_index_lists(p: Path, element) -> np.ndarray:
     """The element's vertex index lists: (k,3) when read as triangles, else (k,) arrays."""
     for name in _PLY_INDEX_NAMES:
-        if name in (element.data.dtype.names or ()):
+        if name in element.data:
             return element.data[name]
     raise _fail(p, f"the PLY {_shown(element.name)} element has no 'vertex_indices' list")
 
 
 def _ply_polygons(p: Path, lists: np.ndarray) -> np.ndarray:
     """A ``face`` element's index lists → triangles (m,3) int64."""
-    if lists.dtype != object:
-        return np.asarray(lists, dtype=np.int64).reshape(len(lists), -1)
+    if lists.dtype != object and lists.ndim == 2 and lists.shape[1] == 3:
+        return np.asarray(lists, dtype=np.int64)
     if all(len(q) == 3 for q in lists):
         return np.vstack(lists).astype(np.int64)
     polys = [np.asarray(q, dtype=np.int64).tolist() for q in lists]
@@ -413,23 +413,180 @@ def _ply_polygons(p: Path, lists: np.ndarray) -> np.ndarray:
     return _off_triangles(polys)
 
 
-def _parse_ply(p: Path):
-    """plyfile's PlyData of the file (its header made ASCII), its errors as one line."""
-    import plyfile
-
-    raw = _read_bytes(p)
-    data = _ascii_header(p, raw)
+def _parse_ply(p: Path) -> _Ply:
+    """The file's elements (:class:`_Ply`), its errors as one line."""
+    data = _read_bytes(p)
+    end = data.find(b"end_header")
+    if not data.startswith(b"ply") or end < 0:
+        raise _fail(p, "not a PLY file (no 'ply' … 'end_header' header)")
+    body = data.index(b"\n", end) + 1 if b"\n" in data[end:] else len(data)
+    ply = _Ply(p, data[:end].decode("ascii", errors="replace").splitlines())
     try:
-        try:  # from the path where the header is clean: plyfile maps binary data
-            return plyfile.PlyData.read(str(p) if data is raw else io.BytesIO(data), known_list_len=_PLY_TRIANGLES)
-        except plyfile.PlyElementParseError:  # not all triangles (or worse): read row by row, its error counts
-            return plyfile.PlyData.read(str(p) if data is raw else io.BytesIO(data))
-    except plyfile.PlyHeaderParseError as exc:
-        what = "an unknown property type" if " not in " in exc.message else exc.message
-        raise _fail(p, f"malformed PLY header (line {exc.line}: {what})") from None
-    except plyfile.PlyElementParseError as exc:
-        where = f"its {_shown(exc.element.name)} element" if exc.element is not None else "its data"
-        row = f", row {exc.row}" if exc.row is not None else ""
-        raise _fail(p, f"{where} is truncated or corrupt ({exc.message}{row})") from None
-    except (ValueError, TypeError, IndexError, KeyError, OverflowError, UnicodeDecodeError):
-        raise _fail(p, "not a valid PLY file (it could not be parsed)") from None
+        ply.read(data[body:])
+    except (ValueError, IndexError, OverflowError) as exc:
+        raise _fail(p, f"its {_shown(ply.reading)} element is truncated or corrupt ({exc})") from None
+    return ply
+
+
+class _PlyList:
+    """Reading a PLY element that holds list properties (faces, strips)."""
+
+    @staticmethod
+    def column(values: list, t: str, count: str | None) -> np.ndarray:
+        """A property's rows as read one by one: (n,) for a scalar, (n, k) when every list has k entries, else an
+        object array of (k_i,) arrays."""
+        if count is None:
+            return np.asarray(values, dtype=np.float64).astype(t)
+        if values and all(len(v) == len(values[0]) for v in values):
+            return np.vstack(values).astype(np.int64)
+        out = np.empty(len(values), dtype=object)
+        out[:] = values
+        return out
+
+    @staticmethod
+    def first_lengths(el: _PlyElement, body: bytes, at: int, order: str) -> list[int]:
+        """The list lengths of the element's first row (0 for scalars)."""
+        lengths = []
+        for _, t, c in el.props:
+            if c is None or el.count == 0:
+                lengths.append(0)
+                at += np.dtype(t).itemsize
+                continue
+            n = int(np.frombuffer(body, dtype=order + c, count=1, offset=at)[0])
+            lengths.append(n)
+            at += np.dtype(c).itemsize + n * np.dtype(t).itemsize
+        return lengths
+
+    @staticmethod
+    def row_dtype(el: _PlyElement, lengths: list[int], order: str) -> np.dtype:
+        """A row as a structured type, each list with the given length (its count field before it)."""
+        fields = []
+        for (name, t, c), n in zip(el.props, lengths, strict=True):
+            if c is None:
+                fields.append((name, order + t))
+            else:
+                fields += [(f"{name}#count", order + c), (name, order + t, (n,))]
+        return np.dtype(fields)
+
+    @staticmethod
+    def uniform(el: _PlyElement, rows: np.ndarray, lengths: list[int]) -> bool:
+        """Whether every row's lists have the first row's lengths (the structured read is then the file)."""
+        return all(c is None or (rows[f"{name}#count"] == n).all()
+                   for (name, _, c), n in zip(el.props, lengths, strict=True))
+
+    @staticmethod
+    def rows(el: _PlyElement, body: bytes, at: int, order: str) -> int:
+        """Read ``el`` row by row (lists of varying length); the position after it."""
+        cols: dict = {name: [] for name, _, _ in el.props}
+        for _ in range(el.count):
+            for name, t, c in el.props:
+                if c is None:
+                    cols[name].append(np.frombuffer(body, dtype=order + t, count=1, offset=at)[0])
+                    at += np.dtype(t).itemsize
+                    continue
+                n = int(np.frombuffer(body, dtype=order + c, count=1, offset=at)[0])
+                at += np.dtype(c).itemsize
+                cols[name].append(np.frombuffer(body, dtype=order + t, count=n, offset=at).astype(np.int64))
+                at += n * np.dtype(t).itemsize
+        el.data = {name: _PlyList.column(cols[name], t, c) for name, t, c in el.props}
+        return at
+
+
+class _PlyElement:
+    """One PLY element: its name, row count, properties (name, type code, list count type or None) and, once read,
+    ``data``: property name → (count,) array, or for a list (count, k) when every row has k entries, else an object
+    array of (k_i,) arrays."""
+
+    def __init__(self, name: str, count: int):
+        self.name, self.count, self.props, self.data = name, count, [], {}
+
+
+class _Ply:
+    """A PLY file as its header declares it (format, elements, properties), read by :meth:`read`.
+
+    A tolerant reader of our own: the PLY readers of trimesh and meshio read no ``tristrips`` element, and the one
+    that does (plyfile) is GPL-licensed."""
+
+    def __init__(self, p: Path, header: list[str]):
+        self.p, self.elements, self.fmt, self.reading = p, [], None, "header"
+        for i, line in enumerate(header[1:], start=2):
+            w = line.split()
+            if not w or w[0] in ("comment", "obj_info"):
+                continue
+            if w[0] == "format" and len(w) >= 2 and w[1] in ("ascii", "binary_little_endian", "binary_big_endian"):
+                self.fmt = w[1]
+            elif w[0] == "element" and len(w) == 3 and w[2].isdigit():
+                self.elements.append(_PlyElement(w[1], int(w[2])))
+            elif w[0] == "property" and self.elements and self._property(w):
+                continue
+            else:
+                raise _fail(p, f"malformed PLY header (line {i}: {_shown(line.strip()[:60])})")
+        if self.fmt is None:
+            raise _fail(p, "malformed PLY header (no 'format ascii' or 'format binary_…_endian 1.0' line)")
+
+    def _property(self, w: list[str]) -> bool:
+        """Add the property of header words ``w`` to the last element; False when the line is not one."""
+        if len(w) == 3 and w[1] in _PLY_TYPES:
+            self.elements[-1].props.append((w[2], _PLY_TYPES[w[1]], None))
+            return True
+        if len(w) == 5 and w[1] == "list" and w[2] in _PLY_TYPES and w[3] in _PLY_TYPES:
+            self.elements[-1].props.append((w[4], _PLY_TYPES[w[3]], _PLY_TYPES[w[2]]))
+            return True
+        return False
+
+    def __getitem__(self, name: str) -> _PlyElement:
+        return next(e for e in self.elements if e.name == name)
+
+    def read(self, body: bytes) -> None:
+        if self.fmt == "ascii":
+            tokens, at = body.split(), 0
+            for el in self.elements:
+                self.reading = el.name
+                at = self._ascii(el, tokens, at)
+            return
+        order = "<" if self.fmt == "binary_little_endian" else ">"
+        at = 0
+        for el in self.elements:
+            self.reading = el.name
+            at = self._binary(el, body, at, order)
+
+    @staticmethod
+    def _ascii(el: _PlyElement, tokens: list[bytes], at: int) -> int:
+        """Read ``el`` from the whitespace-separated tokens from ``at``; the position after it."""
+        if all(c is None for _, _, c in el.props):  # fixed rows: one array
+            k = len(el.props)
+            rows = np.array(tokens[at: at + k * el.count], dtype=np.float64)
+            if len(rows) < k * el.count:
+                raise ValueError(f"{el.count} rows declared, fewer found")
+            rows = rows.reshape(el.count, k)
+            el.data = {name: rows[:, j].astype(t) for j, (name, t, _) in enumerate(el.props)}
+            return at + k * el.count
+        cols: dict = {name: [] for name, _, _ in el.props}
+        for _ in range(el.count):
+            for name, _, c in el.props:
+                if c is None:
+                    cols[name].append(float(tokens[at]))
+                    at += 1
+                else:
+                    n = int(tokens[at])
+                    cols[name].append(np.array(tokens[at + 1: at + 1 + n], dtype=np.float64).astype(np.int64))
+                    if len(cols[name][-1]) < n:
+                        raise ValueError("a list is cut short")
+                    at += 1 + n
+        el.data = {name: _PlyList.column(cols[name], t, c) for name, t, c in el.props}
+        return at
+
+    @staticmethod
+    def _binary(el: _PlyElement, body: bytes, at: int, order: str) -> int:
+        """Read ``el`` from ``body`` at byte ``at`` (``order``: < or >); the position after it. Rows whose lists
+        all have the first row's lengths (faces of triangles) are read as one structured array."""
+        first = _PlyList.first_lengths(el, body, at, order)
+        dtype = _PlyList.row_dtype(el, first, order)
+        size = dtype.itemsize * el.count
+        if at + size <= len(body):
+            rows = np.frombuffer(body, dtype=dtype, count=el.count, offset=at)
+            if _PlyList.uniform(el, rows, first):
+                el.data = {name: (rows[name].astype(t) if c is None else rows[name].astype(np.int64))
+                           for name, t, c in el.props}
+                return at + size
+        return _PlyList.rows(el, body, at, order)
