@@ -167,10 +167,7 @@ def load_meshio(p: Path) -> tuple[np.ndarray, np.ndarray]:
     with warnings.catch_warnings(), quiet[0], quiet[1]:
         warnings.simplefilter("ignore")
         try:
-            if p.suffix.lower() == ".ply":
-                m = meshio.read(io.BytesIO(readers.ply_ascii_header(p)), file_format="ply")
-            else:
-                m = meshio.read(p)
+            m = meshio.read(p)
         except SystemExit:  # meshio's OFF reader exits on some parse errors instead of raising
             raise HeatparamError(f"cannot read {p}: not a valid {p.suffix[1:].upper()} file") from None
     V = np.asarray(m.points, dtype=np.float64)

@@ -324,23 +324,6 @@ def read_stl(p: Path) -> tuple[np.ndarray, np.ndarray]:
 # ----------------------------------------------------------------------------------------------------------
 # PLY
 # ----------------------------------------------------------------------------------------------------------
-def ply_ascii_header(p: Path) -> bytes:
-    """The PLY file's bytes with every non-ASCII byte of its header (comments, names) replaced by ``?``, so that
-    the PLY libraries, which decode the header as UTF-8, read it."""
-    return _ascii_header(p, _read_bytes(p))
-
-
-def _ascii_header(p: Path, data: bytes) -> bytes:
-    """``data`` itself when its PLY header is ASCII, else a copy with the header's non-ASCII bytes made ``?``."""
-    end = data.find(b"end_header")
-    if not data.startswith(b"ply") or end < 0:
-        raise _fail(p, "not a PLY file (no 'ply' … 'end_header' header)")
-    head = data[:end]
-    if max(head, default=0) < 128:
-        return data
-    return bytes(b if b < 128 else 63 for b in head) + data[end:]
-
-
 #: the names exporters give the list of a face's (or a strip's) vertex indices
 _PLY_INDEX_NAMES = ("vertex_indices", "vertex_index")
 #: PLY scalar type names → numpy type codes (both spellings of the standard)
@@ -419,10 +402,11 @@ def _parse_ply(p: Path) -> _Ply:
     end = data.find(b"end_header")
     if not data.startswith(b"ply") or end < 0:
         raise _fail(p, "not a PLY file (no 'ply' … 'end_header' header)")
-    body = data.index(b"\n", end) + 1 if b"\n" in data[end:] else len(data)
+    nl = data.find(b"\n", end)
+    body = nl + 1 if nl >= 0 else len(data)
     ply = _Ply(p, data[:end].decode("ascii", errors="replace").splitlines())
     try:
-        ply.read(data[body:])
+        ply.read(data, body)
     except (ValueError, IndexError, OverflowError) as exc:
         raise _fail(p, f"its {_shown(ply.reading)} element is truncated or corrupt ({exc})") from None
     return ply
@@ -537,18 +521,19 @@ class _Ply:
     def __getitem__(self, name: str) -> _PlyElement:
         return next(e for e in self.elements if e.name == name)
 
-    def read(self, body: bytes) -> None:
+    def read(self, data: bytes, start: int) -> None:
+        """Read every element from ``data`` (the whole file) at byte ``start`` (the body's first)."""
         if self.fmt == "ascii":
-            tokens, at = body.split(), 0
+            tokens, at = data[start:].split(), 0
             for el in self.elements:
                 self.reading = el.name
                 at = self._ascii(el, tokens, at)
             return
         order = "<" if self.fmt == "binary_little_endian" else ">"
-        at = 0
+        at = start
         for el in self.elements:
             self.reading = el.name
-            at = self._binary(el, body, at, order)
+            at = self._binary(el, data, at, order)
 
     @staticmethod
     def _ascii(el: _PlyElement, tokens: list[bytes], at: int) -> int:
