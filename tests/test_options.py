@@ -73,6 +73,7 @@ def test_api_terms_become_flags():
     assert to_cli_terms("use geodesics='landmarks' (or 'auto')") == "use --geodesics landmarks (or 'auto')"
     assert to_cli_terms("try fill='none', then refine=none;") == "try --fill none, then --refine none;"
     assert to_cli_terms("mass='lumped' stays") == "mass='lumped' stays"  # no flag: kept in API terms
+    assert to_cli_terms("split (seams='none': one piece)") == "split (--seams none: one piece)"
 
 
 @pytest.mark.parametrize("message, expect", [

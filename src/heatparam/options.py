@@ -285,7 +285,7 @@ def cli_options() -> list[Option]:
     return [o for o in OPTIONS if o.flag]
 
 
-_API_SPELLING = re.compile(r"\b(" + "|".join(o.name for o in OPTIONS) + r")=(?:'([^']*)'|(\S+?))(?=[\s,;)]|$)")
+_API_SPELLING = re.compile(r"\b(" + "|".join(o.name for o in OPTIONS) + r")=(?:'([^']*)'|(\S+?))(?=[\s,;:)]|$)")
 #: A bare option name: one with an underscore anywhere but inside a path or a longer name (an identifier, never an
 #: English word: "fill" is both), and any one as the subject a refusal starts with (``landmarks must be ...``, the
 #: validation's wording).

@@ -247,3 +247,32 @@ def test_dxf_bytes_do_not_depend_on_the_process(tmp_path):
                     "--quiet", "--seed", "3"], check=True)
     fresh = (tmp_path / "fresh.dxf").read_bytes()
     assert (tmp_path / "second.dxf").read_bytes() == fresh and (tmp_path / "first.dxf").read_bytes() == fresh
+
+
+def test_atlas_labels_never_overlap(tmp_path):
+    """The cow's atlas in DXF: the TEXT entities read back (chart ids, summaries, seam labels) have pairwise
+    disjoint boxes, each chart id lies inside its chart, and labels left out are counted on ANNOTATION."""
+    import heatparam
+    from heatparam import formats
+    from heatparam.formats.labels import label_box
+
+    V, F = formats.load_mesh(shared_mesh("cow.off"))
+    r = heatparam.parameterize(V, F)
+    pattern = layout_charts(build_pattern(V, F, r.uv, r.Fuv, r.uv_vertex, chart=r.chart))
+    info = write_dxf(tmp_path / "cow.dxf", pattern, units="m")
+    doc = read(tmp_path / "cow.dxf")
+    texts_ = [t for t in doc.modelspace().query("TEXT") if not t.dxf.text.startswith(("units:", "left out"))]
+    B = np.array([label_box(t.dxf.text, t.dxf.align_point.x, t.dxf.align_point.y, t.dxf.height, t.dxf.rotation, pad=0.0)
+                  for t in texts_])
+    overlap = ((B[:, None, 0] < B[None, :, 2]) & (B[None, :, 0] < B[:, None, 2])
+               & (B[:, None, 1] < B[None, :, 3]) & (B[None, :, 1] < B[:, None, 3]))
+    np.fill_diagonal(overlap, False)
+    assert len(texts_) > len(pattern.charts) and not overlap.any()
+    ids = {t.dxf.text: (t.dxf.align_point.x, t.dxf.align_point.y) for t in texts_
+           if t.dxf.layer == "ANNOTATION" and t.dxf.text[0] == "C"}
+    assert len(ids) + info["labels_left_out"]["chart"] == len(pattern.charts)
+    for ch in pattern.charts:
+        if f"C{ch.id}" in ids:
+            assert Path(pattern.uv[ch.outer.rows]).contains_point(ids[f"C{ch.id}"]), ch.id
+    notes = [t.dxf.text for t in doc.modelspace().query("TEXT") if t.dxf.text.startswith("left out")]
+    assert bool(notes) == bool(sum(info["labels_left_out"].values()))

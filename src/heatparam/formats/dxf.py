@@ -14,6 +14,7 @@ import os
 
 import numpy as np
 
+from heatparam.formats.labels import place_labels
 from heatparam.formats.pattern import Pattern
 from heatparam.formats.units import insunits
 
@@ -31,13 +32,6 @@ def chart_summary(chart, units: str) -> list[str]:
     return [f"iso mean {chart.iso_mean:.4f} max {chart.iso_max:.4f}",
             f"outline {chart.outer.length_uv:.6g} {units} (3D {chart.outer.length_3d:.6g}, stretch "
             f"{chart.outer.stretch:.4f})"]
-
-
-def summary_height(pattern: Pattern, chart, lines: list[str], th: float) -> float:
-    """Text height of a chart's summary: 0.6 x the annotation height, smaller if needed to fit the chart's width
-    (a glyph is taken as 0.6 x the height wide)."""
-    width = float(np.ptp(pattern.uv[chart.rows][:, 0]))
-    return min(0.6 * th, 0.9 * width / (0.6 * max(len(t) for t in lines)))
 
 
 def write_dxf(path: str | os.PathLike, pattern: Pattern, units: str = "mm", title: str = "") -> dict:
@@ -67,16 +61,25 @@ def write_dxf(path: str | os.PathLike, pattern: Pattern, units: str = "mm", titl
     msp = doc.modelspace()
     th = text_height(pattern)
     uv = pattern.uv
-    n_holes = sum(_add_chart(msp, pattern, ch, units) for ch in pattern.charts)
+    n_holes = 0
+    for ch in pattern.charts:
+        for lp in ch.loops:
+            layer = "OUTLINE" if lp.kind == "outer" else "HOLES"
+            msp.add_lwpolyline(uv[lp.rows].tolist(), format="xy", close=True, dxfattribs={"layer": layer})
+            n_holes += lp.kind == "hole"
     for s in pattern.seams:
         msp.add_lwpolyline(uv[s.rows].tolist(), format="xy", close=False, dxfattribs={"layer": "SEAMS"})
-        msp.add_text(s.label, height=th, rotation=readable_angle(s.angle), dxfattribs={"layer": "SEAMS"}).set_placement(
-            tuple(s.label_point(0.8 * th)), align=TextEntityAlignment.MIDDLE_CENTER)
     for x0, y0, w, h in pattern.sheets:
         msp.add_lwpolyline([(x0, y0), (x0 + w, y0), (x0 + w, y0 + h), (x0, y0 + h)], format="xy", close=True,
                            dxfattribs={"layer": "SHEET"})
+    labels = place_labels(pattern, th, {ch.id: chart_summary(ch, units) for ch in pattern.charts}, readable_angle)
+    for lb in labels.placed:
+        msp.add_text(lb.text, height=lb.size, rotation=lb.angle,
+                     dxfattribs={"layer": "SEAMS" if lb.kind == "seam" else "ANNOTATION"}).set_placement(
+            (lb.x, lb.y), align=TextEntityAlignment.MIDDLE_CENTER)
     lo, _ = pattern.bbox
-    lines = [f"units: {units}", *([title] if title else [])]
+    left = ", ".join(f"{n} {what}" for what, n in labels.left_out.items() if n)
+    lines = [f"units: {units}", *([f"left out (no room): {left}"] if left else []), *([title] if title else [])]
     for i, line in enumerate(lines):
         msp.add_text(line, height=th, dxfattribs={"layer": "ANNOTATION"}).set_placement(
             (lo[0], lo[1] - (2 + 1.5 * i) * th), align=TextEntityAlignment.LEFT)
@@ -87,26 +90,8 @@ def write_dxf(path: str | os.PathLike, pattern: Pattern, units: str = "mm", titl
     with _fixed_metadata():
         doc.saveas(os.fspath(path))
     return {"format": "dxf", "units": units, "charts": len(pattern.charts), "outlines": len(pattern.charts),
-            "holes": n_holes, "seam_labels": len(pattern.seams), "sheets": len(pattern.sheets)}
-
-
-def _add_chart(msp, pattern: Pattern, ch, units: str) -> int:
-    """A chart's loops (OUTLINE, HOLES), its id and its distortion summary (ANNOTATION); returns its hole count."""
-    from ezdxf.enums import TextEntityAlignment
-
-    th = text_height(pattern)
-    for lp in ch.loops:
-        layer = "OUTLINE" if lp.kind == "outer" else "HOLES"
-        msp.add_lwpolyline(pattern.uv[lp.rows].tolist(), format="xy", close=True, dxfattribs={"layer": layer})
-    c = label_point(pattern, ch)
-    msp.add_text(f"C{ch.id}", height=2 * th, dxfattribs={"layer": "ANNOTATION"}).set_placement(
-        tuple(c), align=TextEntityAlignment.MIDDLE_CENTER)
-    lines = chart_summary(ch, units)
-    sh = summary_height(pattern, ch, lines, th)
-    for i, line in enumerate(lines):
-        msp.add_text(line, height=sh, dxfattribs={"layer": "ANNOTATION"}).set_placement(
-            (c[0], c[1] - 1.5 * th - 1.5 * i * sh), align=TextEntityAlignment.MIDDLE_CENTER)
-    return sum(lp.kind == "hole" for lp in ch.loops)
+            "holes": n_holes, "seam_labels": sum(lb.kind == "seam" for lb in labels.placed),
+            "labels_left_out": labels.left_out, "sheets": len(pattern.sheets)}
 
 
 @contextlib.contextmanager
@@ -120,14 +105,6 @@ def _fixed_metadata():
         yield
     finally:
         ezdxf.options.write_fixed_meta_data_for_testing = fixed
-
-
-def label_point(pattern: Pattern, chart) -> np.ndarray:
-    """A point for the chart's id: the chart's face centroid closest to the centre of its bounding box (inside
-    the chart, not in a hole)."""
-    P = pattern.uv[pattern.Fuv[chart.faces]].mean(axis=1)
-    lo, hi = pattern.uv[chart.rows].min(axis=0), pattern.uv[chart.rows].max(axis=0)
-    return P[np.argmin(np.linalg.norm(P - (lo + hi) / 2, axis=1))]
 
 
 def readable_angle(angle: float) -> float:

@@ -1,5 +1,5 @@
-"""Where a flat pattern's labels go (the SVG's chart ids, chart summaries and seam labels): inside their chart,
-sized to it, never over one another.
+"""Where a flat pattern's labels go (the SVG's and the DXF's chart ids, chart summaries and seam labels):
+inside their chart, sized to it, never over one another.
 
 A label is a box centred on its point, :data:`GLYPH_WIDTH` × its size wide per character and its size tall, with
 :data:`PAD` around it, turned by its angle; boxes are compared by their axis-aligned bounds (a turned label claims
