@@ -1,0 +1,143 @@
+"""A Blender mesh as heatparam's triangles and heatparam's UVs back into its face corners (loops), with NumPy over
+``foreach_get`` / ``foreach_set`` (no per-element Python).
+
+heatparam takes no list of cuts (its ``seams`` option cuts holes open, nothing else), so the edges the user marked
+as seams are cut here: a vertex gets one copy per fan of face corners that the marked edges separate around it
+(:func:`corner_vertices`), and heatparam sees the cut as mesh border. Quads and n-gons go to heatparam as Blender's
+own triangulation (``loop_triangles``); each triangle corner's UV goes back to the loop it came from.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+
+def _get(collection, attr: str, dtype, width: int = 1) -> np.ndarray:
+    out = np.empty(len(collection) * width, dtype=dtype)
+    collection.foreach_get(attr, out)
+    return out.reshape(-1, width) if width > 1 else out
+
+
+class Loops(NamedTuple):
+    """A mesh's face corners: vertex (L,) and edge (L,) of each loop, the loop after it in its face (L,), the
+    polygon of each loop (L,)."""
+
+    vertex: np.ndarray
+    edge: np.ndarray
+    next: np.ndarray
+    polygon: np.ndarray
+
+    @classmethod
+    def of(cls, mesh) -> Loops:
+        start = _get(mesh.polygons, "loop_start", np.int64)
+        total = _get(mesh.polygons, "loop_total", np.int64)
+        poly = np.repeat(np.arange(len(start)), total)
+        first = start[poly]
+        nxt = first + (np.arange(len(poly)) - first + 1) % total[poly]
+        return cls(_get(mesh.loops, "vertex_index", np.int64), _get(mesh.loops, "edge_index", np.int64), nxt, poly)
+
+    def edge_ends(self, chosen: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each chosen loop's edge seen from both of its ends: key (2k,) = edge × n + end vertex, and the loop at
+        that end (2k,). Loops with one key meet at that vertex across that edge."""
+        lp = np.flatnonzero(chosen)
+        ends = np.concatenate([lp, self.next[lp]])
+        edges = np.concatenate([self.edge[lp], self.edge[lp]])
+        return edges * self.vertex_count + self.vertex[ends], ends
+
+    @property
+    def vertex_count(self) -> int:
+        """One more than the largest vertex index (the keys' base)."""
+        return int(self.vertex.max()) + 1 if len(self.vertex) else 1
+
+
+def _same_key_pairs(key: np.ndarray, loop: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pairs (a, b) of loops that share a key (each loop with the first one of its key) and that key."""
+    order = np.argsort(key, kind="stable")
+    k, lp = key[order], loop[order]
+    new = np.ones(len(k), dtype=bool)
+    new[1:] = k[1:] != k[:-1]
+    first = lp[np.flatnonzero(new)[np.cumsum(new) - 1]]
+    return first[~new], lp[~new], k[~new]
+
+
+def _components(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(n,) the smallest member of each element's connected component under the pairs (a, b) (label propagation
+    with pointer jumping; fans around a vertex are short, so few rounds)."""
+    lab = np.arange(n)
+    while True:
+        low = np.minimum(lab[a], lab[b])
+        new = lab.copy()
+        np.minimum.at(new, a, low)
+        np.minimum.at(new, b, low)
+        new = new[new]
+        if np.array_equal(new, lab):
+            return lab
+        lab = new
+
+
+def corner_vertices(loops: Loops, chosen: np.ndarray, seam: np.ndarray) -> np.ndarray:
+    """(L,) int64: the vertex of each chosen loop in the cut mesh, -1 for loops not chosen. Two loops at one vertex
+    share a cut vertex when a path of faces around the vertex joins them without crossing a marked edge (``seam``
+    (E,) bool) or leaving the chosen faces (``chosen`` (L,) bool).
+
+    Examples
+    --------
+    Two faces sharing an unmarked edge keep their two shared vertices; marked, those split in two.
+    """
+    key, end = loops.edge_ends(chosen)
+    glued = ~seam[key // loops.vertex_count]
+    a, b, _ = _same_key_pairs(key[glued], end[glued])
+    lab = _components(len(loops.vertex), a, b)
+    out = np.full(len(loops.vertex), -1, dtype=np.int64)
+    _, out[chosen] = np.unique(lab[chosen], return_inverse=True)
+    return out
+
+
+class Triangles(NamedTuple):
+    """The chosen faces of a mesh as heatparam's triangle mesh: V (n,3) float64 (world coordinates × unit factor),
+    F (t,3) int64, and the loop at each triangle corner (t,3)."""
+
+    V: np.ndarray
+    F: np.ndarray
+    corner_loop: np.ndarray
+
+
+def triangles(mesh, loops: Loops, chosen_polygons: np.ndarray, cut: bool, matrix: np.ndarray,
+              factor: float) -> Triangles:
+    """heatparam's mesh of the chosen polygons (``chosen_polygons`` (P,) bool), cut along the marked seams when
+    ``cut``. ``matrix``: the object's 4×4 world matrix; ``factor``: Blender units → the pattern's unit."""
+    mesh.calc_loop_triangles()
+    tri_loops = _get(mesh.loop_triangles, "loops", np.int64, 3)
+    tri_loops = tri_loops[chosen_polygons[_get(mesh.loop_triangles, "polygon_index", np.int64)]]
+    chosen = chosen_polygons[loops.polygon]
+    seam = _get(mesh.edges, "use_seam", bool) if cut else np.zeros(len(mesh.edges), dtype=bool)
+    vert = corner_vertices(loops, chosen, seam)
+    co = _get(mesh.vertices, "co", np.float32, 3).astype(np.float64)
+    src = np.zeros(max(int(vert.max()) + 1, 0), dtype=np.int64)
+    src[vert[chosen]] = loops.vertex[chosen]
+    world = co[src] @ matrix[:3, :3].T + matrix[:3, 3]
+    return Triangles(world * factor, vert[tri_loops], tri_loops)
+
+
+def loop_uvs(tris: Triangles, corner_uv: np.ndarray, old: np.ndarray, tol: float = 1e-9
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """The UV of every loop: ``corner_uv`` (t,3,2) at the triangles' loops, ``old`` (L,2) elsewhere. An n-gon loop
+    in several triangles takes its first one's UV; returns also (L,) bool the loops whose triangles disagree (an
+    n-gon that heatparam's charts cut through: one UV per loop cannot draw it)."""
+    uv = old.copy()
+    flat_loops, flat_uv = tris.corner_loop.ravel(), corner_uv.reshape(-1, 2)
+    uv[flat_loops[::-1]] = flat_uv[::-1]  # the first corner of a loop wins (later writes win in NumPy)
+    split = np.zeros(len(old), dtype=bool)
+    split[flat_loops[np.abs(uv[flat_loops] - flat_uv).max(axis=1) > tol]] = True
+    return uv, split
+
+
+def uv_seams(loops: Loops, chosen: np.ndarray, uv: np.ndarray, n_edges: int) -> np.ndarray:
+    """(E,) bool: edges between chosen faces whose two sides have different UVs at an end (the charts' borders)."""
+    key, end = loops.edge_ends(chosen)
+    a, b, k = _same_key_pairs(key, end)
+    out = np.zeros(n_edges, dtype=bool)
+    out[k[np.any(uv[a] != uv[b], axis=1)] // loops.vertex_count] = True
+    return out
