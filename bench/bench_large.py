@@ -17,14 +17,32 @@ polish's start (and, when the heat stage's MDS layout was computed but not usabl
 iterations, iso mean / flips / boundary crossings of both maps.
 
 Run: ``python bench/bench_large.py [--only NAME ...]``
+
+``--family SEEDS`` (``1000-1019``, ``0,3,7`` or both mixed) runs issue 42's family instead (``large_family.draw``:
+scan-like parts of 150k-400k faces drawn per seed; tune on seeds 0-99, report on 1000-1019, which nothing is tuned
+on). Per part, written as binary PLY: heatparam end to end through the CLI (``heatparam unwrap part.ply -o out.obj
+--report r.json``, default options, I/O included; peak RSS of the child from ``/usr/bin/time -v``); in another fresh
+process ``igl.lscm`` with two pins (two far boundary vertices) on the part's largest edge-connected piece without
+its zero-area faces, the solve alone timed (I/O excluded), then ``--slim-iters`` SLIM iterations (symmetric
+Dirichlet) from LSCM scaled to true area where LSCM is flip-free (SLIM needs a flip-free start; none otherwise).
+Prints one row per part, then the distribution: median and worst ratio to LSCM, peak memory, flips, crossings, and
+iso mean against the best bijective of LSCM / SLIM. ``--jsonl FILE`` appends every part's measurements as a JSON
+line.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import re
+import shutil
+import subprocess
+import sys
 import tempfile
+import time
 from pathlib import Path
 
+import large_family
 import numpy as np
 from common import PEAK_RSS, SHARED, machine, run_isolated
 
@@ -66,6 +84,55 @@ print(json.dumps({"seconds": t1 - t0, "peak_mb": peak_mb(), "iso": s["iso_mean"]
                   "crossings": s["boundary_crossings"]}))
 """
 
+PEER = PEAK_RSS + """
+import json, time
+import numpy as np, igl
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from heatparam.formats import load_mesh
+from heatparam import metrics
+p = json.load(open(sys.argv[1]))
+V, F = load_mesh(p["mesh"])
+d = np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+F = F[d > 1e-12 * d.max()]  # zero-area faces would leave LSCM singular
+E = np.vstack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+key = np.minimum(E[:, 0], E[:, 1]) * len(V) + np.maximum(E[:, 0], E[:, 1])
+_, ek = np.unique(key, return_inverse=True)
+m = len(F)
+face = np.tile(np.arange(m), 3)
+A = coo_matrix((np.ones(3 * m), (face, ek)), shape=(m, ek.max() + 1)).tocsr()
+_, lab = connected_components(A @ A.T, directed=False)
+F = F[lab == np.bincount(lab).argmax()]
+used = np.unique(F)
+remap = np.full(len(V), -1)
+remap[used] = np.arange(len(used))
+V, F = V[used], remap[F]
+E = np.vstack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+n = len(V)
+bnd = np.unique(E[~np.isin(E[:, 0] * n + E[:, 1], E[:, 1] * n + E[:, 0])])
+b0 = bnd[0]
+b1 = bnd[np.argmax(np.linalg.norm(V[bnd] - V[b0], axis=1))]
+t0 = time.perf_counter()
+uv = igl.lscm(V, F, np.array([b0, b1]), np.array([[0.0, 0.0], [1.0, 0.0]]))
+t1 = time.perf_counter()
+uv = np.asarray(uv[0] if isinstance(uv, tuple) else uv)
+s = metrics.summary(V, F, uv)
+out = {"seconds": t1 - t0, "faces": len(F), "iso": s["iso_mean"], "flips": s["flips"],
+       "crossings": s["boundary_crossings"], "bijective": s["bijective"]}
+if s["flips"] == 0 and p["slim_iters"] > 0:
+    uv0 = uv * s["uv_scale"]
+    t2 = time.perf_counter()
+    data = igl.slim_precompute(V, F.astype(np.int32), uv0, igl.MappingEnergyType.SYMMETRIC_DIRICHLET,
+                               np.zeros(0, np.int32), np.zeros((0, 2)))
+    uvs = np.asarray(igl.slim_solve(data, p["slim_iters"]))[:, :2]
+    t3 = time.perf_counter()
+    q = metrics.summary(V, F, uvs)
+    out.update(slim_seconds=t3 - t2, slim_iso=q["iso_mean"], slim_flips=q["flips"],
+               slim_crossings=q["boundary_crossings"], slim_bijective=q["bijective"])
+out["peak_mb"] = peak_mb()
+print(json.dumps(out))
+"""
+
 NAMES = ["halftunnel_up", "camelhead_up", "cylinder_noisy", "cylinder_noisy02", "demo_up", "beetle_up"]
 
 
@@ -100,11 +167,113 @@ def _write_obj(path: str, V: np.ndarray, F: np.ndarray) -> None:
         fh.write("".join(f"f {a} {b} {c}\n" for a, b, c in (F + 1).tolist()))
 
 
+def seeds(spec: str) -> list[int]:
+    """``1000-1019``, ``0,3,7`` or both mixed, as a list of ints."""
+    out: list[int] = []
+    for part in spec.split(","):
+        a, _, b = part.partition("-")
+        out += list(range(int(a), int(b) + 1)) if b else [int(a)]
+    return out
+
+
+def run_cli(mesh: Path, tmp: Path) -> dict:
+    """``heatparam unwrap mesh -o out.obj --report r.json`` in a child (default options): wall seconds, the child's
+    peak RSS (``/usr/bin/time -v``, else none), and what the report says."""
+    exe = Path(sys.executable).parent / "heatparam"
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "heatparam"]
+    cmd += ["unwrap", str(mesh), "-o", str(tmp / "out.obj"), "--report", str(tmp / "r.json")]
+    timer = ["/usr/bin/time", "-v"] if shutil.which("/usr/bin/time") else []
+    t0 = time.perf_counter()
+    r = subprocess.run(timer + cmd, capture_output=True, text=True)
+    seconds = time.perf_counter() - t0
+    if r.returncode != 0:
+        return {"error": (r.stderr.strip().splitlines() or ["failed"])[-1][:200]}
+    rss = re.search(r"Maximum resident set size \(kbytes\): (\d+)", r.stderr)
+    rep = json.loads((tmp / "r.json").read_text())
+    m, method = rep["metrics"], rep.get("method", {})
+    seams = method.get("seams", {})
+    return {"seconds": seconds, "peak_mb": int(rss.group(1)) / 1024 if rss else None, "iso": m["iso_mean"],
+            "flips": m["flips"], "crossings": m.get("boundary_crossings", 0), "stages": rep.get("timings_s", {}),
+            "seams": "used" if seams.get("used") else ("tried" if "iso_mean_with" in seams else "no")}
+
+
+def _best_peer(peer: dict) -> tuple[str, float]:
+    """The best bijective of LSCM / SLIM by iso mean: (name, iso), or ("none", inf)."""
+    cands = [("LSCM", peer["iso"])] if peer.get("bijective") else []
+    if peer.get("slim_bijective"):
+        cands.append(("SLIM", peer["slim_iso"]))
+    return min(cands, key=lambda c: c[1]) if cands else ("none", float("inf"))
+
+
+def family_row(seed: int, desc: dict, ours: dict, peer: dict) -> str:
+    """One markdown row of a family part."""
+    name, best = _best_peer(peer)
+    stages = ", ".join(f"{k} {v:.0f}" for k, v in ours["stages"].items() if v >= 1.0)
+    slim = (f"{peer['slim_iso']:.4f} / {peer['slim_flips']} / {peer['slim_crossings']} ({peer['slim_seconds']:.0f} s)"
+            if "slim_iso" in peer else "–")
+    delta = f"{100 * (ours['iso'] / best - 1):+.2f}% vs {name}" if np.isfinite(best) else "no bijective peer"
+    return (f"| {seed} | {desc['kind']} | {desc['faces']} | {desc.get('holes', desc.get('dropouts'))} | "
+            f"{desc.get('noise', '')} | {', '.join(desc.get('defects', {})) or '–'} | {ours['seconds']:.1f} | "
+            f"{peer['seconds']:.1f} | {ours['seconds'] / peer['seconds']:.1f}× | {ours['peak_mb']:.0f} | "
+            f"{stages} | {ours['seams']} | {ours['iso']:.4f} / {ours['flips']} / {ours['crossings']} | "
+            f"{peer['iso']:.4f} / {peer['flips']} / {peer['crossings']} | {slim} | {delta} |")
+
+
+def family_summary(rows: list[dict]) -> str:
+    """The distribution over the parts measured: ratio to LSCM (median, worst), peak memory, flips, crossings,
+    iso mean against the best bijective peer."""
+    ratios = np.array([r["ours"]["seconds"] / r["peer"]["seconds"] for r in rows])
+    mem = np.array([r["ours"]["peak_mb"] or np.nan for r in rows])
+    deltas = [r["ours"]["iso"] / _best_peer(r["peer"])[1] - 1 for r in rows]
+    deltas = np.array([d for d in deltas if np.isfinite(d)])
+    worst = rows[int(np.argmax(ratios))]["seed"]
+    return (f"parts: {len(rows)}; ratio to LSCM median {np.median(ratios):.1f}×, worst {ratios.max():.1f}× (seed "
+            f"{worst}); within 2×: {int((ratios <= 2).sum())}; peak RSS median {np.nanmedian(mem):.0f} MB, max "
+            f"{np.nanmax(mem):.0f} MB; parts with flips {sum(r['ours']['flips'] > 0 for r in rows)}, with boundary "
+            f"crossings {sum(r['ours']['crossings'] > 0 for r in rows)}; iso mean vs the best bijective peer: median "
+            f"{100 * np.median(deltas) if len(deltas) else float('nan'):+.2f}%, worst "
+            f"{100 * deltas.max() if len(deltas) else float('nan'):+.2f}% ({len(deltas)} parts with a bijective peer)")
+
+
+def run_family(spec: str, slim_iters: int, jsonl: str | None) -> None:
+    """Issue 42's family: one row per seed, then the distribution."""
+    print("| seed | kind | faces | holes | noise | defects | heatparam s | LSCM s | ratio | heatparam MB | stages (s) "
+          "| seams | iso / flips / crossings (heatparam) | iso / flips / crossings (LSCM) | SLIM iso / flips / "
+          "crossings | iso vs best bijective peer |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    rows = []
+    for seed in seeds(spec):
+        V, F, desc = large_family.draw(seed)
+        with tempfile.TemporaryDirectory() as tmp:
+            mesh = Path(tmp) / f"part{seed}.ply"
+            large_family.write_ply(mesh, V, F)
+            del V, F
+            ours = run_cli(mesh, Path(tmp))
+            peer = run_isolated(PEER, {"mesh": str(mesh), "slim_iters": slim_iters})
+        if "error" in ours or "error" in peer:
+            print(f"| {seed} | {desc['kind']} | {desc['faces']} | failed: {ours.get('error') or peer.get('error')} "
+                  "||||||||||||", flush=True)
+            continue
+        rows.append({"seed": seed, "desc": desc, "ours": ours, "peer": peer})
+        print(family_row(seed, desc, ours, peer), flush=True)
+        if jsonl:
+            with open(jsonl, "a") as fh:
+                fh.write(json.dumps(rows[-1]) + "\n")
+    if rows:
+        print("\n" + family_summary(rows))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", nargs="*", default=None, choices=NAMES)
+    ap.add_argument("--family", default=None, help="issue 42's family: seeds such as 1000-1019 (held out) or 0-99")
+    ap.add_argument("--slim-iters", type=int, default=5, help="SLIM iterations from LSCM in --family (0: none)")
+    ap.add_argument("--jsonl", default=None, help="--family: append each part's measurements to this file")
     args = ap.parse_args()
     print(f"machine: {machine()}\n")
+    if args.family:
+        run_family(args.family, args.slim_iters, args.jsonl)
+        return
     print("| mesh | vertices | heatparam s | LSCM s | ratio | heatparam MB | LSCM MB | stages (s) | start "
           "| Newton its | seams | iso / flips / crossings (heatparam) | iso / flips / crossings (LSCM) |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
