@@ -186,6 +186,10 @@ OPTIONS: tuple[Option, ...] = (
            flag="--padding", metavar="PX", short="gutter between charts, pixels", group="atlas"),
     Option("resolution", 1024, "int", "atlas, pack texture: the texture's size in pixels (for --padding)", low=16,
            high=2**20, flag="--resolution", metavar="PX", short="texture size in pixels", group="atlas"),
+    Option("texels_per_unit", 0.0, "float", "atlas, pack texture: the texel density, pixels of the --resolution "
+           "texture per model unit, the same for every chart; 0 = the largest at which all charts fit (an error when "
+           "the density given does not fit)", low=0.0, high=1e12, flag="--texels-per-unit", metavar="D",
+           short="pixels per unit; 0 = the largest that fits", group="atlas"),
     Option("unit_name", "model units", "choice", "the model's length unit, a name only (nothing is scaled): the "
            "lengths in messages carry it (the seams warning). heatparam unwrap sets it from --units (default mm, with "
            "a warning when the part would be under 10 mm or over 100 m across in mm)", ("model units", *UNITS),

@@ -1,43 +1,31 @@
-"""Packing charts without overlap: each chart turned to its minimum-area bounding rectangle, then shelf packing.
+"""Packing charts without overlap; packing moves and turns charts only (one common scale in texture mode).
 
-``scale``: true scale (model units), charts kept at their size, a gap of ``gap`` model units between boxes.
-``texture``: every chart scaled by one common factor, as large as fits in [0,1]² with a gutter of
-``padding / resolution`` between boxes (``padding`` pixels of a ``resolution``² texture) and half of it at the
-border.
+``scale``: true scale (model units), each chart turned to its minimum-area bounding rectangle, shelf packing of the
+boxes with a gap of ``gap`` model units between them.
+``texture``: the charts nested by their rasters in a ``resolution``² texture (``mesh.nest``: rotations by quarter
+turns of their own and of their minimum-area rectangle's frame, bottom-left fill, largest first), every chart at one
+texel density: the largest that fits (bisection), or ``texels_per_unit`` when given. Two charts are at least
+``padding`` pixels apart (their conservative rasters, one dilated by the padding, never meet) and every chart at
+least half of it from the border; UVs in [0,1]².
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError
 
+from heatparam.errors import HeatparamError
+from heatparam.mesh.nest import Grid, Piece, min_area_rotation, orientations
 from heatparam.mesh.planar import shelf_pack
 
 __all__ = ["min_area_rotation", "pack_charts"]
 
-
-def min_area_rotation(P: np.ndarray) -> np.ndarray:
-    """(2,2) rotation that puts the points' minimum-area bounding rectangle axis-aligned (rotating calipers)."""
-    try:
-        H = P[ConvexHull(P).vertices]
-    except (QhullError, ValueError):
-        return np.eye(2)
-    E = np.roll(H, -1, axis=0) - H
-    ang = np.arctan2(E[:, 1], E[:, 0])
-    t = np.unique(np.mod(ang, np.pi / 2))
-    c, s = np.cos(t), np.sin(t)
-    R = np.stack([np.column_stack([c, s]), np.column_stack([-s, c])], axis=1)  # (T,2,2): one rotation per angle
-    Q = H @ R.transpose(0, 2, 1)  # (T,h,2): the hull in each frame, all at once
-    ext = Q.max(axis=1) - Q.min(axis=1)
-    best, R_best = np.inf, np.eye(2)
-    for i, area in enumerate((ext[:, 0] * ext[:, 1]).tolist()):  # the first of the smallest, as one by one
-        if area < best - 1e-12 * abs(best if np.isfinite(best) else 1):
-            best, R_best = area, R[i] if ext[i, 0] >= ext[i, 1] else np.array([[0, 1], [-1, 0]]) @ R[i]
-    return R_best
+#: The bisection on the texel density stops when the bracket is this narrow (relative): utilization within ~1%.
+DENSITY_TOLERANCE = 0.005
 
 
 def pack_charts(uvs: list[np.ndarray], Fs: list[np.ndarray], mode: str = "scale", padding: float = 4.0,
-                resolution: int = 1024, gap: float | None = None) -> tuple[list[np.ndarray], dict]:
+                resolution: int = 1024, gap: float | None = None, texels_per_unit: float | None = None
+                ) -> tuple[list[np.ndarray], dict]:
     """Place charts without overlap.
 
     Parameters
@@ -47,18 +35,20 @@ def pack_charts(uvs: list[np.ndarray], Fs: list[np.ndarray], mode: str = "scale"
     mode : ``scale`` or ``texture`` (module docstring).
     padding, resolution : the texture gutter in pixels and the texture size (``texture``).
     gap : ``scale`` mode gap in model units (default: 2% of the square root of the mean chart box area).
+    texels_per_unit : ``texture``: the texel density (pixels per model unit) instead of the largest that fits.
 
     Returns
     -------
-    (placed layouts, info dict with ``scale`` (texture scale factor; 1 in scale mode), ``width``, ``height``,
-    ``efficiency`` = summed chart UV area / area of the atlas rectangle ([0,1]² in texture mode)).
+    (placed layouts, info dict with ``scale`` (UV units per model unit; 1 in scale mode), ``width``, ``height``,
+    ``efficiency`` = summed chart UV area / area of the atlas rectangle ([0,1]² in texture mode: the utilization),
+    and in texture mode ``texels_per_unit``, ``padding``, ``resolution``).
     """
-    rot, sizes, areas = _upright(uvs, Fs)
-    if mode == "scale":
-        return _pack_scale(rot, sizes, areas, gap)
-    if mode != "texture":
+    if mode == "texture":
+        return _TexturePack(uvs, Fs, float(padding), int(resolution)).packed(texels_per_unit)
+    if mode != "scale":
         raise ValueError(f"pack must be 'scale' or 'texture', got {mode!r}")
-    return _pack_texture(rot, sizes, areas, float(padding) / float(resolution))
+    rot, sizes, areas = _upright(uvs, Fs)
+    return _pack_scale(rot, sizes, areas, gap)
 
 
 def _upright(uvs: list[np.ndarray], Fs: list[np.ndarray]) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
@@ -96,30 +86,71 @@ def _pack_scale(rot: list[np.ndarray], sizes: np.ndarray, areas: np.ndarray, gap
                  "efficiency": float(areas.sum() / max(w * h, 1e-300))}
 
 
-def _pack_texture(rot: list[np.ndarray], sizes: np.ndarray, areas: np.ndarray, g: float
-                  ) -> tuple[list[np.ndarray], dict]:
-    """One common scale, the largest that fits in [0,1]² with gutter ``g`` (bisection)."""
-    hi = (1.0 - g) / max(float(sizes.max()), 1e-300)
-    lo = 0.0
-    if _texture_fit(sizes, hi, g)[0]:
-        lo = hi
-    else:
-        for _ in range(40):
+def _uv_area(P: np.ndarray, F: np.ndarray) -> float:
+    T = P[F]
+    e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
+    return 0.5 * float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum())
+
+
+class _TexturePack:
+    """The charts nested in one ``resolution``² texture at one texel density (module docstring)."""
+
+    def __init__(self, uvs: list[np.ndarray], Fs: list[np.ndarray], padding: float, resolution: int):
+        self.pieces = [Piece(P, F, orientations(P, "free")) for P, F in zip(uvs, Fs, strict=True)]
+        self.areas = np.array([_uv_area(P, F) for P, F in zip(uvs, Fs, strict=True)])
+        self.order = np.argsort(-self.areas, kind="stable")  # largest first
+        self.R = resolution
+        self.gap_px = int(np.ceil(padding - 1e-9))
+        self.margin = int(np.ceil(padding / 2 - 1e-9))
+        self.padding = padding
+
+    def fit(self, density: float) -> list | None:
+        """Each chart's (shape, y, x) at ``density`` pixels per unit, or None when they do not all fit."""
+        grid = Grid(self.R, self.R, self.margin)
+        placed: list = [None] * len(self.pieces)
+        for i in self.order:
+            shapes = self.pieces[i].shapes(density, self.gap_px)
+            where = grid.best(shapes)
+            if where is None:
+                return None
+            k, y, x = where
+            grid.place(shapes[k], y, x)
+            placed[i] = (shapes[k], y, x)
+        return placed
+
+    def packed(self, texels_per_unit: float | None) -> tuple[list[np.ndarray], dict]:
+        """The placed layouts (UVs in [0,1]²) and the packing's report entry."""
+        if texels_per_unit is not None:
+            density, placed = float(texels_per_unit), self.fit(float(texels_per_unit))
+            if placed is None:
+                raise HeatparamError(f"the charts at texels_per_unit={texels_per_unit:g} do not fit in one "
+                                     f"{self.R} x {self.R} texture — lower texels_per_unit or raise resolution")
+        else:
+            density, placed = self._largest()
+        out = []
+        for i, (shape, y, x) in enumerate(placed):
+            Q = (self.pieces[i].P @ shape.R.T - shape.lo) * density + np.array([x, y], dtype=np.float64)
+            out.append(Q / self.R)
+        scale = density / self.R
+        used = float(self.areas.sum() * scale * scale)
+        return out, {"mode": "texture", "scale": scale, "width": 1.0, "height": 1.0,
+                     "gutter": self.padding / self.R, "padding": self.padding, "resolution": self.R,
+                     "texels_per_unit": density, "efficiency": used, "utilization": used}
+
+    def _largest(self) -> tuple[float, list]:
+        """The largest density at which the charts fit (bisection between a fit and a failure)."""
+        inner = self.R - 2 * self.margin
+        hi = inner / np.sqrt(max(float(self.areas.sum()), 1e-300))  # every texel used: an upper bound
+        lo, placed = 0.7 * hi, None
+        while placed is None:
+            placed = self.fit(lo)
+            if placed is None:
+                hi, lo = lo, lo * 0.8
+        while hi - lo > DENSITY_TOLERANCE * lo:
             mid = 0.5 * (lo + hi)
-            if _texture_fit(sizes, mid, g)[0]:
-                lo = mid
-            else:
+            trial = self.fit(mid)
+            if trial is None:
                 hi = mid
-    _, pos = _texture_fit(sizes, lo, g)
-    out = [Q * lo + pos[i] + 0.5 * g for i, Q in enumerate(rot)]
-    return out, {"mode": "texture", "scale": lo, "width": 1.0, "height": 1.0, "gutter": g,
-                 "efficiency": float(areas.sum() * lo * lo)}
-
-
-def _texture_fit(sizes: np.ndarray, s: float, g: float) -> tuple[bool, np.ndarray | None]:
-    """Whether the charts scaled by ``s`` fit in [0,1]² with gutter ``g``, and the boxes' shelf positions."""
-    inner = 1.0 - g
-    if (sizes * s).max() > inner:
-        return False, None
-    pos, _, h = shelf_pack(sizes * s, inner, g)
-    return h <= inner, pos
+            else:
+                lo, placed = mid, trial
+        return lo, placed

@@ -53,7 +53,7 @@ DEFAULT_MAX_DISTORTION = 1.05
 #: components with fewer faces are reported as tiny (they still get charts)
 TINY_COMPONENT_FACES = 20
 #: the Options fields that are the atlas's own (not passed to the per-chart pipeline)
-ATLAS_FIELDS = ("max_distortion", "max_charts", "pack", "padding", "resolution", "progress")
+ATLAS_FIELDS = ("max_distortion", "max_charts", "pack", "padding", "resolution", "texels_per_unit", "progress")
 
 #: one disk (V, F) flattened by the pipeline's stages with the options given: ``pipeline.parameterize_disk``
 DiskFlattener = Callable[[np.ndarray, np.ndarray, Options], Result]
@@ -86,7 +86,7 @@ class Chart:
 
 def atlas(V: np.ndarray, F: np.ndarray, flatten_disk: DiskFlattener, *, max_distortion: float | None = None,
           max_charts: int | None = None, pack: str = "scale", padding: float = 4.0, resolution: int = 1024,
-          seed: int = 0, **pipeline_options) -> AtlasResult:
+          texels_per_unit: float | None = None, seed: int = 0, **pipeline_options) -> AtlasResult:
     """A bijective, near-isometric atlas of any triangle mesh (module docstring).
 
     Parameters
@@ -102,6 +102,7 @@ def atlas(V: np.ndarray, F: np.ndarray, flatten_disk: DiskFlattener, *, max_dist
         says when the atlas still has more.
     pack : ``scale`` (true scale, model units) or ``texture`` (UVs in [0,1]², one common scale).
     padding, resolution : gutter in pixels of a ``resolution``² texture (``texture``).
+    texels_per_unit : ``texture``: pixels per model unit for every chart (None: the largest that fits).
     seed : seeds the farthest-point seeds and the pipeline.
     pipeline_options : :class:`~heatparam.options.Options` fields for every chart's flattening.
     """
@@ -121,7 +122,7 @@ def atlas(V: np.ndarray, F: np.ndarray, flatten_disk: DiskFlattener, *, max_dist
     components, tiny = maker.components(rep.components)
     t_flat = time.perf_counter() - t0
     placed, pinfo = pack_charts([c.uv for c in maker.charts], [c.Fl for c in maker.charts], pack, padding,
-                                resolution)
+                                resolution, texels_per_unit=texels_per_unit)
     res = _assemble(maker.charts, placed, len(F))
     res.report = {"parameters": {"max_distortion": max_distortion, "bound_used": bound, "max_charts": max_charts,
                                  "pack": pinfo["mode"]},
@@ -140,7 +141,8 @@ def atlas_result(V: np.ndarray, F: np.ndarray, opts: Options, *, why: str, flatt
     o = asdict(opts)
     pipeline_options = {k: v for k, v in o.items() if k not in ATLAS_FIELDS and k != "seed"}
     res = atlas(V, F, flatten_disk, max_distortion=opts.max_distortion or None, max_charts=opts.max_charts or None,
-                pack=opts.pack, padding=opts.padding, resolution=opts.resolution, seed=opts.seed,
+                pack=opts.pack, padding=opts.padding, resolution=opts.resolution,
+                texels_per_unit=opts.texels_per_unit or None, seed=opts.seed,
                 **pipeline_options)
     summary = metrics.summary(V, F, res.uv, res.Fuv)
     summary["stress_rel_rms"] = None

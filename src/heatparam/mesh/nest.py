@@ -1,0 +1,216 @@
+"""Raster nesting: pieces (sets of triangles in the plane) placed without overlap on pixel grids, moved and turned
+only, as xatlas packs its charts (``BitImage``).
+
+Each piece is rasterized conservatively (every pixel that any of its triangles touches, holes left empty), in each
+orientation allowed. A grid keeps the pixels of the pieces already placed; a new piece's raster, dilated by the gap
+in whole pixels (a square: Chebyshev distance), goes to the lowest, then leftmost, position where it meets no
+occupied pixel, and of its orientations the one whose top ends lowest wins (bottom-left fill). Two pieces whose
+pixel sets are ``k`` empty pixels apart in x or y are at least ``k`` pixel widths apart in the plane: the gap holds
+exactly, whatever the rounding, and no two pieces overlap. Holes in a piece stay free for smaller pieces.
+
+The scans run in numba-compiled loops (the placement scan skips past each occupied pixel it meets, so a full row
+costs one step per occupied run); the rest is numpy.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+from scipy import ndimage
+from scipy.spatial import ConvexHull, QhullError
+
+__all__ = ["Grid", "Piece", "min_area_rotation", "orientations"]
+
+#: Pixels touched within this fraction of a pixel count as touched: rounding never loses a pixel a piece touches.
+TOUCH_EPS = 1e-7
+
+
+def min_area_rotation(P: np.ndarray) -> np.ndarray:
+    """(2,2) rotation that puts the points' minimum-area bounding rectangle axis-aligned, its long side along x
+    (rotating calipers)."""
+    try:
+        H = P[ConvexHull(P).vertices]
+    except (QhullError, ValueError):
+        return np.eye(2)
+    E = np.roll(H, -1, axis=0) - H
+    ang = np.arctan2(E[:, 1], E[:, 0])
+    t = np.unique(np.mod(ang, np.pi / 2))
+    c, s = np.cos(t), np.sin(t)
+    R = np.stack([np.column_stack([c, s]), np.column_stack([-s, c])], axis=1)  # (T,2,2): one rotation per angle
+    Q = H @ R.transpose(0, 2, 1)  # (T,h,2): the hull in each frame, all at once
+    ext = Q.max(axis=1) - Q.min(axis=1)
+    best, R_best = np.inf, np.eye(2)
+    for i, area in enumerate((ext[:, 0] * ext[:, 1]).tolist()):  # the first of the smallest, as one by one
+        if area < best - 1e-12 * abs(best if np.isfinite(best) else 1):
+            best, R_best = area, R[i] if ext[i, 0] >= ext[i, 1] else np.array([[0, 1], [-1, 0]]) @ R[i]
+    return R_best
+
+
+def _quarter_turns(R: np.ndarray) -> list[np.ndarray]:
+    q = np.array([[0.0, -1.0], [1.0, 0.0]])
+    out = [R]
+    for _ in range(3):
+        out.append(q @ out[-1])
+    return out
+
+
+def orientations(P: np.ndarray, rule: str) -> list[np.ndarray]:
+    """The (2,2) rotations a piece with points P (n,2) may take: ``none`` the identity only (the grain kept),
+    ``180`` also the half turn, ``free`` the quarter turns of the identity and of the minimum-area rectangle's frame."""
+    if rule == "none":
+        return [np.eye(2)]
+    if rule == "180":
+        return [np.eye(2), -np.eye(2)]
+    if rule != "free":
+        raise ValueError(f"rotation rule must be none, 180 or free, got {rule!r}")
+    out = _quarter_turns(np.eye(2))
+    R = min_area_rotation(P)
+    if abs(abs(R[0, 0]) - 1.0) > 1e-9 and abs(R[0, 0]) > 1e-9:  # not already a quarter turn
+        out += _quarter_turns(R)
+    return out
+
+
+@njit(cache=True)
+def _raster(T, h, w):  # pragma: no cover - compiled
+    """(h,w) uint8 conservative raster of triangles T (t,3,2) in pixel units: a pixel [j,j+1]x[i,i+1] is set
+    when a triangle touches it (separating axes: the box's two, the triangle's three edge normals)."""
+    img = np.zeros((h, w), dtype=np.uint8)
+    for t in range(T.shape[0]):
+        ax, ay, bx, by, cx, cy = T[t, 0, 0], T[t, 0, 1], T[t, 1, 0], T[t, 1, 1], T[t, 2, 0], T[t, 2, 1]
+        area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+        sg = 1.0 if area >= 0 else -1.0
+        x0 = max(int(math.floor(min(ax, bx, cx) - TOUCH_EPS)), 0)
+        x1 = min(int(math.floor(max(ax, bx, cx) + TOUCH_EPS)), w - 1)
+        y0 = max(int(math.floor(min(ay, by, cy) - TOUCH_EPS)), 0)
+        y1 = min(int(math.floor(max(ay, by, cy) + TOUCH_EPS)), h - 1)
+        P = ((ax, ay, bx, by), (bx, by, cx, cy), (cx, cy, ax, ay))
+        for i in range(y0, y1 + 1):
+            for j in range(x0, x1 + 1):
+                inside = True
+                for px, py, qx, qy in P:
+                    nx, ny = sg * (py - qy), sg * (qx - px)  # inward normal of the edge p -> q
+                    # the box corner farthest along the inward normal must not be behind the edge
+                    cxm = j + 1.0 if nx > 0 else float(j)
+                    cym = i + 1.0 if ny > 0 else float(i)
+                    if nx * (cxm - px) + ny * (cym - py) < -TOUCH_EPS * (abs(nx) + abs(ny)):
+                        inside = False
+                        break
+                if inside:
+                    img[i, j] = 1
+    return img
+
+
+@njit(cache=True)
+def _first_fit(nxt, run_r, run_a, run_b, h, w, margin):  # pragma: no cover - compiled
+    """Lowest, then leftmost (y, x) where no run (row offset r, columns a..b, relative to the raster's corner)
+    meets an occupied pixel, the raster (h,w) kept ``margin`` pixels inside the grid; (-1, -1) if none.
+    ``nxt`` (H, W+1): the first occupied column at or right of each pixel (W where none)."""
+    H, W = nxt.shape[0], nxt.shape[1] - 1
+    for y in range(margin, H - margin - h + 1):
+        x = margin
+        while x <= W - margin - w:
+            ok = True
+            for k in range(run_r.shape[0]):
+                yy = y + run_r[k]
+                if yy < 0 or yy >= H:
+                    continue
+                a = max(x + run_a[k], 0)
+                b = min(x + run_b[k], W - 1)
+                if a > b:
+                    continue
+                c = nxt[yy, a]
+                if c <= b:  # occupied at c: every x that keeps c within this run fails too
+                    ok = False
+                    x = max(x + 1, c - run_a[k] + 1)
+                    break
+            if ok:
+                return y, x
+    return -1, -1
+
+
+@njit(cache=True)
+def _stamp(occ, nxt, raster, y, x):  # pragma: no cover - compiled
+    """Mark ``raster`` at (y, x) in ``occ`` and refresh ``nxt`` on its rows."""
+    h, w = raster.shape
+    W = occ.shape[1]
+    for i in range(h):
+        for j in range(w):
+            if raster[i, j]:
+                occ[y + i, x + j] = 1
+        row = y + i
+        nxt[row, W] = W
+        for c in range(W - 1, -1, -1):
+            nxt[row, c] = c if occ[row, c] else nxt[row, c + 1]
+
+
+def _runs(mask: np.ndarray, off: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Horizontal runs of a (h,w) mask: (row, first column, last column) each, shifted by ``-off`` (int64)."""
+    m = np.pad(mask.astype(np.int8), ((0, 0), (1, 1)))
+    d = np.diff(m, axis=1)
+    r0, a = np.nonzero(d == 1)
+    _, b = np.nonzero(d == -1)  # the same rows in the same order (row-major)
+    return (r0 - off).astype(np.int64), (a - off).astype(np.int64), (b - 1 - off).astype(np.int64)
+
+
+@dataclass
+class Shape:
+    """One orientation of a piece at one pixel scale: rotation R (2,2), the rotated points' lower corner ``lo`` (2,)
+    (model units), the raster (h,w) uint8 and the runs of its dilation."""
+
+    R: np.ndarray
+    lo: np.ndarray
+    raster: np.ndarray
+    runs: tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+class Piece:
+    """A piece to nest: points P (n,2) and triangles T (t,3), with the rotations it may take (:func:`orientations`).
+
+    :meth:`shapes` rasterizes it at a scale (pixels per model unit) with a dilation of ``gap_px`` pixels."""
+
+    def __init__(self, P: np.ndarray, T: np.ndarray, rotations: list[np.ndarray]):
+        self.P = np.asarray(P, dtype=np.float64)
+        self.T = np.asarray(T, dtype=np.int64)
+        self.rotations = rotations
+
+    def shapes(self, scale: float, gap_px: int) -> list[Shape]:
+        """Each orientation's raster at ``scale`` pixels per unit, dilated by ``gap_px`` pixels for the scan."""
+        out = []
+        st = np.ones((2 * gap_px + 1, 2 * gap_px + 1), dtype=bool)
+        for R in self.rotations:
+            Q = self.P @ R.T
+            lo = Q.min(axis=0)
+            Qp = (Q - lo) * scale
+            h, w = int(math.floor(Qp[:, 1].max())) + 1, int(math.floor(Qp[:, 0].max())) + 1
+            ras = _raster(np.ascontiguousarray(Qp[self.T]), h, w)
+            dil = ndimage.binary_dilation(np.pad(ras, gap_px), structure=st) if gap_px else ras.astype(bool)
+            out.append(Shape(R, lo, ras, _runs(dil, gap_px)))
+        return out
+
+
+class Grid:
+    """An (H,W) pixel grid (a texture, a sheet) with the pieces placed on it; ``margin`` pixels kept free at the
+    border."""
+
+    def __init__(self, H: int, W: int, margin: int = 0):
+        self.occ = np.zeros((H, W), dtype=np.uint8)
+        self.nxt = np.tile(np.full(W + 1, W, dtype=np.int64), (H, 1))
+        self.margin = margin
+        self.top = 0  # the highest row used + 1
+
+    def best(self, shapes: list[Shape]) -> tuple[int, int, int] | None:
+        """(orientation index, y, x) of the placement whose top ends lowest (then leftmost), or None."""
+        best = None
+        for k, s in enumerate(shapes):
+            h, w = s.raster.shape
+            y, x = _first_fit(self.nxt, *s.runs, h, w, self.margin)
+            if y >= 0 and (best is None or (y + h, x) < best[0]):
+                best = ((y + h, x), k, y, x)
+        return None if best is None else best[1:]
+
+    def place(self, shape: Shape, y: int, x: int) -> None:
+        _stamp(self.occ, self.nxt, shape.raster, y, x)
+        self.top = max(self.top, y + shape.raster.shape[0])
