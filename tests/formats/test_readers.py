@@ -11,7 +11,7 @@ from heatparam import datasets, formats
 from heatparam.errors import HeatparamError
 from heatparam.formats.readers import strip_triangles
 
-from hostile import ply_bytes
+from hostile import leaked, ply_bytes
 
 FORMATS = ["ascii", "binary_little_endian", "binary_big_endian"]
 
@@ -113,3 +113,36 @@ def test_bad_ply_files_one_line(tmp_path, data, expect):
         formats.load_mesh(p)
     msg = str(exc.value)
     assert expect in msg and str(p) in msg and "\n" not in msg, msg
+
+
+_MESHLAB_HEADER = (b"ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+                   b"element face 2\nproperty list uchar int vertex_indices\nproperty list uchar float texcoord\n"
+                   b"property uchar red\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n")
+
+
+def test_ascii_rows_longer_than_the_header_read_one_per_line(tmp_path):
+    # MeshLab (VCG) writes face rows with more fields than the header declares: the extras are ignored
+    p = tmp_path / "vcg.ply"
+    p.write_bytes(_MESHLAB_HEADER + b"3 0 1 2 6 0.5 0.25 0.5 0.5 0.25 0.5 9 1 1 1 1\n"
+                                    b"3 0 2 3 6 0.5 0.25 0.5 0.5 0.25 0.5 9 1 1 1 1\n")
+    V, F = formats.load_mesh(p)
+    assert V.shape == (4, 3) and F.tolist() == [[0, 1, 2], [0, 2, 3]]
+
+
+def test_capital_magic_word_and_crlf_lines(tmp_path):
+    # Rhino's PLY: 'PLY' and CRLF line ends
+    p = tmp_path / "rhino.ply"
+    p.write_bytes(b"PLY\r\nformat ascii 1.0\r\nelement vertex 3\r\nproperty float x\r\nproperty float y\r\n"
+                  b"property float z\r\nelement face 1\r\nproperty list uchar int vertex_indices\r\nend_header\r\n"
+                  b"0 0 0\r\n1 0 0\r\n0 1 0\r\n3 0 1 2\r\n")
+    V, F = formats.load_mesh(p)
+    assert V.shape == (3, 3) and F.tolist() == [[0, 1, 2]]
+
+
+def test_corrupt_numbers_named_without_python_text(tmp_path):
+    p = tmp_path / "junk.ply"
+    p.write_bytes(_MESHLAB_HEADER + b"3 0 1 x 0 7\n3 0 2 3 0 7\n")
+    with pytest.raises(HeatparamError) as exc:
+        formats.load_mesh(p)
+    msg = str(exc.value)
+    assert "'face' element is truncated or corrupt" in msg and not leaked(msg) and "invalid literal" not in msg, msg

@@ -400,7 +400,7 @@ def _parse_ply(p: Path) -> _Ply:
     """The file's elements (:class:`_Ply`), its errors as one line."""
     data = _read_bytes(p)
     end = data.find(b"end_header")
-    if not data.startswith(b"ply") or end < 0:
+    if data[:3].lower() != b"ply" or end < 0:  # Rhino writes the magic word in capitals
         raise _fail(p, "not a PLY file (no 'ply' … 'end_header' header)")
     nl = data.find(b"\n", end)
     body = nl + 1 if nl >= 0 else len(data)
@@ -408,8 +408,13 @@ def _parse_ply(p: Path) -> _Ply:
     try:
         ply.read(data, body)
     except (ValueError, IndexError, OverflowError) as exc:
-        raise _fail(p, f"its {_shown(ply.reading)} element is truncated or corrupt ({exc})") from None
+        detail = f" ({exc})" if isinstance(exc, _Corrupt) else ""  # numpy's and int()'s texts are no message
+        raise _fail(p, f"its {_shown(ply.reading)} element is truncated or corrupt{detail}") from None
     return ply
+
+
+class _Corrupt(ValueError):
+    """A PLY body that does not match its header, in words fit for the user."""
 
 
 class _PlyList:
@@ -525,9 +530,16 @@ class _Ply:
         """Read every element from ``data`` (the whole file) at byte ``start`` (the body's first)."""
         if self.fmt == "ascii":
             tokens, at = data[start:].split(), 0
-            for el in self.elements:
-                self.reading = el.name
-                at = self._ascii(el, tokens, at)
+            try:
+                for el in self.elements:
+                    self.reading = el.name
+                    at = self._ascii(el, tokens, at)
+                if at == len(tokens):
+                    return
+            except (ValueError, IndexError):
+                pass
+            # rows longer than the header says (MeshLab's faces with texcoords): each row is its own line
+            self._ascii_lines(data[start:])
             return
         order = "<" if self.fmt == "binary_little_endian" else ">"
         at = start
@@ -542,7 +554,7 @@ class _Ply:
             k = len(el.props)
             rows = np.array(tokens[at: at + k * el.count], dtype=np.float64)
             if len(rows) < k * el.count:
-                raise ValueError(f"{el.count} rows declared, fewer found")
+                raise _Corrupt(f"{el.count} rows declared, fewer found")
             rows = rows.reshape(el.count, k)
             el.data = {name: rows[:, j].astype(t) for j, (name, t, _) in enumerate(el.props)}
             return at + k * el.count
@@ -556,10 +568,34 @@ class _Ply:
                     n = int(tokens[at])
                     cols[name].append(np.array(tokens[at + 1: at + 1 + n], dtype=np.float64).astype(np.int64))
                     if len(cols[name][-1]) < n:
-                        raise ValueError("a list is cut short")
+                        raise _Corrupt("a list is cut short")
                     at += 1 + n
         el.data = {name: _PlyList.column(cols[name], t, c) for name, t, c in el.props}
         return at
+
+    def _ascii_lines(self, body: bytes) -> None:
+        """Read every element one row per line, the properties from each line's start, the rest ignored."""
+        lines = [w for w in (line.split() for line in body.splitlines()) if w]
+        at = 0
+        for el in self.elements:
+            self.reading = el.name
+            if at + el.count > len(lines):
+                raise _Corrupt(f"{el.count} rows declared, fewer found")
+            cols: dict = {name: [] for name, _, _ in el.props}
+            for w in lines[at: at + el.count]:
+                k = 0
+                for name, _, c in el.props:
+                    if c is None:
+                        cols[name].append(float(w[k]))
+                        k += 1
+                        continue
+                    n = int(w[k])
+                    if k + 1 + n > len(w):
+                        raise _Corrupt("a list is cut short")
+                    cols[name].append(np.array(w[k + 1: k + 1 + n], dtype=np.float64).astype(np.int64))
+                    k += 1 + n
+            el.data = {name: _PlyList.column(cols[name], t, c) for name, t, c in el.props}
+            at += el.count
 
     @staticmethod
     def _binary(el: _PlyElement, body: bytes, at: int, order: str) -> int:
