@@ -104,21 +104,66 @@ class Triangles(NamedTuple):
     corner_loop: np.ndarray
 
 
-def triangles(mesh, loops: Loops, chosen_polygons: np.ndarray, cut: bool, matrix: np.ndarray,
+def marked_seams(mesh) -> np.ndarray:
+    """(E,) bool: the edges the user marked as seams."""
+    return _get(mesh.edges, "use_seam", bool)
+
+
+def triangles(mesh, loops: Loops, chosen_polygons: np.ndarray, seam: np.ndarray, matrix: np.ndarray,
               factor: float) -> Triangles:
-    """heatparam's mesh of the chosen polygons (``chosen_polygons`` (P,) bool), cut along the marked seams when
-    ``cut``. ``matrix``: the object's 4×4 world matrix; ``factor``: Blender units → the pattern's unit."""
+    """heatparam's mesh of the chosen polygons (``chosen_polygons`` (P,) bool), cut along the edges ``seam`` (E,)
+    bool. ``matrix``: the object's 4×4 world matrix; ``factor``: Blender units → the pattern's unit."""
     mesh.calc_loop_triangles()
     tri_loops = _get(mesh.loop_triangles, "loops", np.int64, 3)
     tri_loops = tri_loops[chosen_polygons[_get(mesh.loop_triangles, "polygon_index", np.int64)]]
     chosen = chosen_polygons[loops.polygon]
-    seam = _get(mesh.edges, "use_seam", bool) if cut else np.zeros(len(mesh.edges), dtype=bool)
     vert = corner_vertices(loops, chosen, seam)
     co = _get(mesh.vertices, "co", np.float32, 3).astype(np.float64)
     src = np.zeros(max(int(vert.max()) + 1, 0), dtype=np.int64)
     src[vert[chosen]] = loops.vertex[chosen]
     world = co[src] @ matrix[:3, :3].T + matrix[:3, 3]
     return Triangles(world * factor, vert[tri_loops], tri_loops)
+
+
+def _uv_joins(F: np.ndarray, corner_uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs (i, j) of triangles that share an edge whose two sides have the same UVs at both ends (F (t,3) int64,
+    corner_uv (t,3,2))."""
+    a, b = F.ravel(), np.roll(F, -1, axis=1).ravel()  # corner j's edge runs to corner j+1
+    ua, ub = corner_uv.reshape(-1, 2), np.roll(corner_uv, -1, axis=1).reshape(-1, 2)
+    lower = (a < b)[:, None]
+    at_lo, at_hi = np.where(lower, ua, ub), np.where(lower, ub, ua)  # each side's UV at the edge's ends, in order
+    key = np.minimum(a, b) * (int(F.max()) + 1 if len(F) else 1) + np.maximum(a, b)
+    i, j, _ = _same_key_pairs(key, np.arange(len(a)))
+    same = np.all(at_lo[i] == at_lo[j], axis=1) & np.all(at_hi[i] == at_hi[j], axis=1)
+    return i[same] // 3, j[same] // 3
+
+
+def chart_borders(loops: Loops, chosen: np.ndarray, tris: Triangles, corner_uv: np.ndarray, n_edges: int
+                  ) -> np.ndarray:
+    """(E,) bool: heatparam's UV cuts moved onto polygon edges (``chosen`` (L,) bool: the chosen loops). Each
+    polygon goes wholly to the side of its largest triangle: its chart (edges between polygons of different charts
+    are cut) and, where a cut runs through it inside one chart (a hole's seam), its edges on the other side are
+    cut. Cutting there and flattening again gives charts that one UV per loop can draw."""
+    i, j = _uv_joins(tris.F, corner_uv)
+    t = len(tris.F)
+    chart = _components(t, i, j)
+    poly = loops.polygon[tris.corner_loop[:, 0]]
+    inside = poly[i] == poly[j]
+    piece = _components(t, i[inside], j[inside])  # the triangles of one polygon that its cuts leave together
+    P = tris.V[tris.F]
+    order = np.argsort(np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1), kind="stable")
+    biggest = np.zeros(int(loops.polygon.max()) + 1, dtype=np.int64)
+    biggest[poly[order]] = order  # the largest triangle writes last
+    key, end = loops.edge_ends(chosen)
+    a, b, k = _same_key_pairs(key, end)
+    poly_chart = chart[biggest]
+    out = np.zeros(n_edges, dtype=bool)
+    out[k[poly_chart[loops.polygon[a]] != poly_chart[loops.polygon[b]]] // loops.vertex_count] = True
+    cl, nxt = tris.corner_loop, np.roll(tris.corner_loop, -1, axis=1)
+    on_border = loops.next[cl] == nxt  # a triangle side that is a polygon edge
+    other_side = (piece != piece[biggest[poly]])[:, None] & on_border
+    out[loops.edge[cl[other_side]]] = True
+    return out
 
 
 def loop_uvs(tris: Triangles, corner_uv: np.ndarray, old: np.ndarray, tol: float = 1e-9
@@ -141,3 +186,12 @@ def uv_seams(loops: Loops, chosen: np.ndarray, uv: np.ndarray, n_edges: int) -> 
     out = np.zeros(n_edges, dtype=bool)
     out[k[np.any(uv[a] != uv[b], axis=1)] // loops.vertex_count] = True
     return out
+
+
+def fit_unit_square(corner_uv: np.ndarray, margin: float) -> np.ndarray:
+    """``corner_uv`` (t,3,2) scaled uniformly and moved into [margin, 1 - margin]² when it is not inside [0,1]²
+    already: heatparam packs an atlas into [0,1]² (``pack texture``) but leaves a single disk's map at true scale."""
+    if corner_uv.size == 0 or (corner_uv.min() >= 0.0 and corner_uv.max() <= 1.0):
+        return corner_uv
+    lo, hi = corner_uv.reshape(-1, 2).min(axis=0), corner_uv.reshape(-1, 2).max(axis=0)
+    return (corner_uv - lo) * ((1.0 - 2.0 * margin) / max(float((hi - lo).max()), 1e-300)) + margin

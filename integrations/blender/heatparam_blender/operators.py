@@ -12,10 +12,13 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, St
 from bpy_extras.io_utils import ExportHelper
 
 from .knobs import KNOBS, knob_args, scene_units
-from .meshdata import Loops, loop_uvs, triangles, uv_seams
+from .meshdata import Loops, chart_borders, fit_unit_square, loop_uvs, marked_seams, triangles, uv_seams
 from .runner import RunError, Unwrap, find_command
 
 PATTERN_SUFFIXES = (".dxf", ".svg", ".step", ".stp")
+#: heatparam runs at most this often on one mesh: again when its charts cut through quads or n-gons, with their
+#: borders moved onto polygon edges (``meshdata.chart_borders``), until no polygon is cut
+CHART_PASSES = 3
 _PACK_LABELS = {"scale": "charts at true scale in the scene's units", "texture": "UVs in [0,1]² (a texture map)"}
 
 
@@ -86,9 +89,12 @@ def _units(context) -> tuple[str | None, float]:
     return scene_units(u.system, u.length_unit, u.scale_length)
 
 
-def _mesh_for(obj, chosen: np.ndarray, cut: bool, factor: float):
-    loops = Loops.of(obj.data)
-    return loops, triangles(obj.data, loops, chosen, cut, np.array(obj.matrix_world, dtype=np.float64), factor)
+def _pattern_mesh(obj, cut: bool, factor: float):
+    """heatparam's triangles of a whole object (cut along its marked seams when ``cut``)."""
+    mesh = obj.data
+    seam = marked_seams(mesh) if cut else np.zeros(len(mesh.edges), dtype=bool)
+    return triangles(mesh, Loops.of(mesh), np.ones(len(mesh.polygons), dtype=bool), seam,
+                     np.array(obj.matrix_world, dtype=np.float64), factor)
 
 
 def _fail(op, message: str) -> set:
@@ -159,23 +165,38 @@ class HEATPARAM_OT_unwrap(bpy.types.Operator):
         mesh = obj.data
         if not chosen.any():
             return 0
-        loops, tris = _mesh_for(obj, chosen, self.use_marked_seams, factor)
-        corner_uv = job.corner_uvs(tris.V, tris.F)
+        loops = Loops.of(mesh)
         layer = mesh.uv_layers.active or mesh.uv_layers.new(name="UVMap")
         old = np.empty(2 * len(mesh.loops), dtype=np.float32)
         layer.data.foreach_get("uv", old)
-        uv, split = loop_uvs(tris, corner_uv, old.reshape(-1, 2).astype(np.float64))
+        seam = marked_seams(mesh) if self.use_marked_seams else np.zeros(len(mesh.edges), dtype=bool)
+        uv, split = self._flatten(obj, loops, chosen, seam, job, factor, old.reshape(-1, 2).astype(np.float64))
         layer.data.foreach_set("uv", uv.astype(np.float32).ravel())
         if split.any():
             faces = len(np.unique(loops.polygon[split]))
-            self.report({"WARNING"}, f"{obj.name}: {faces} faces are crossed by a chart border and cannot keep one "
-                                     "UV per corner: triangulate them (Face ▸ Triangulate Faces) and unwrap again")
+            self.report({"WARNING"}, f"{obj.name}: {faces} faces are still crossed by a chart border after "
+                                     f"{CHART_PASSES} passes and cannot keep one UV per corner: triangulate them "
+                                     "(Face ▸ Triangulate Faces) and unwrap again")
         if self.mark_seams:
-            seam = np.zeros(len(mesh.edges), dtype=bool)
-            mesh.edges.foreach_get("use_seam", seam)
-            mesh.edges.foreach_set("use_seam", seam | uv_seams(loops, chosen[loops.polygon], uv, len(mesh.edges)))
+            mesh.edges.foreach_set("use_seam", marked_seams(mesh) | uv_seams(loops, chosen[loops.polygon], uv,
+                                                                             len(mesh.edges)))
         mesh.update()
         return int(chosen.sum())
+
+    def _flatten(self, obj, loops: Loops, chosen: np.ndarray, seam: np.ndarray, job: Unwrap, factor: float,
+                 old: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every loop's UV (``old`` where not chosen) and the loops whose polygon a chart border still crosses."""
+        matrix = np.array(obj.matrix_world, dtype=np.float64)
+        for _ in range(CHART_PASSES):
+            tris = triangles(obj.data, loops, chosen, seam, matrix, factor)
+            corner_uv = job.corner_uvs(tris.V, tris.F)
+            if self.pack == "texture":  # the gutter at the square's border: half the one between charts, as heatparam's
+                corner_uv = fit_unit_square(corner_uv, self.padding / (2.0 * self.resolution))
+            uv, split = loop_uvs(tris, corner_uv, old)
+            if not split.any():
+                break
+            seam = seam | chart_borders(loops, chosen[loops.polygon], tris, corner_uv, len(obj.data.edges))
+        return uv, split
 
 
 class HEATPARAM_OT_export_pattern(bpy.types.Operator, ExportHelper):
@@ -229,7 +250,7 @@ class HEATPARAM_OT_export_pattern(bpy.types.Operator, ExportHelper):
         status = Status(context, 1)
         try:
             status.object(obj.name, 0)
-            _, tris = _mesh_for(obj, np.ones(len(obj.data.polygons), dtype=bool), self.use_marked_seams, factor)
+            tris = _pattern_mesh(obj, self.use_marked_seams, factor)
             values = {n: getattr(self, n) for n in ("max_distortion", "max_charts", "seams")}
             job = Unwrap(find_command(configured_command(context)), knob_args({"pack": "scale", **values}), units,
                          status.line)
