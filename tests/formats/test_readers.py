@@ -146,3 +146,20 @@ def test_corrupt_numbers_named_without_python_text(tmp_path):
         formats.load_mesh(p)
     msg = str(exc.value)
     assert "'face' element is truncated or corrupt" in msg and not leaked(msg) and "invalid literal" not in msg, msg
+
+
+def test_obj_two_corner_faces_are_edges_and_skipped(tmp_path):
+    # exporters write loose edges as 'f a b' (pybullet's samurai_monastry.obj): the faces around them are the mesh
+    p = tmp_path / "edges.obj"
+    p.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1// 2//\nf 1 3 4\nl 1 3\n")
+    V, F = formats.load_mesh(p)
+    assert len(V) == 4 and F.tolist() == [[0, 1, 2], [0, 2, 3]]
+
+
+def test_obj_of_lines_only_is_a_wireframe_not_a_point_cloud(tmp_path):
+    p = tmp_path / "wire.obj"
+    p.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nl 1 2 3\nf 3 1\n")
+    with pytest.raises(HeatparamError) as exc:
+        formats.load_mesh(p)
+    msg = str(exc.value)
+    assert "no faces, only lines or curves (2): a wireframe" in msg and "point cloud" not in msg, msg

@@ -86,6 +86,7 @@ def read_obj(p: Path, text: str | None = None) -> tuple[np.ndarray, np.ndarray]:
         text = decode(_read_bytes(p))
     V: list[list[float]] = []
     groups: list[list[list[int]]] = []  # runs of faces with the same corner count (and ``g``), as meshio read them
+    lines = 0  # edges and curves: ``l``, ``curv`` and ``f`` of two corners (how some exporters write loose edges)
     for lineno, tok in obj_lines(text):
         key = tok[0]
         if key == "v":
@@ -99,8 +100,13 @@ def read_obj(p: Path, text: str | None = None) -> tuple[np.ndarray, np.ndarray]:
             if len(xyz) == 2:
                 xyz.append(0.0)
             V.append(xyz)
+        elif key in ("l", "curv", "curv2"):
+            lines += 1
         elif key == "f" or key == "fo":
-            if len(tok) < 4:
+            if len(tok) == 3:
+                lines += 1
+                continue
+            if len(tok) < 3:
                 raise _fail(p, f"a face needs at least 3 corners, this one has {len(tok) - 1}", lineno)
             corners = []
             for c in tok[1:]:
@@ -126,6 +132,9 @@ def read_obj(p: Path, text: str | None = None) -> tuple[np.ndarray, np.ndarray]:
             groups.append([])
     Va = np.asarray(V, dtype=np.float64).reshape(-1, 3)
     Fa = _fan_groups([g for g in groups if g])
+    if lines and not len(Fa):
+        raise _fail(p, f"no faces, only lines or curves ({lines}): a wireframe; heatparam flattens surfaces: "
+                       f"export the surface's faces")
     if len(Fa) and Fa.max() > np.iinfo(np.int64).max // 2:
         raise _fail(p, "a face index is out of range")
     return Va, Fa
