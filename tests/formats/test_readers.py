@@ -163,3 +163,11 @@ def test_obj_of_lines_only_is_a_wireframe_not_a_point_cloud(tmp_path):
         formats.load_mesh(p)
     msg = str(exc.value)
     assert "no faces, only lines or curves (2): a wireframe" in msg and "point cloud" not in msg, msg
+
+
+def test_off_counts_written_against_the_header(tmp_path):
+    # trimesh's whitespace.off: 'OFF8 6 12', tabs, polygons with colours after the indices
+    p = tmp_path / "glued.off"
+    p.write_text("\t  OFF4 2 0 # a comment\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n 3  0 1 2  1.0 0.0 0.0\n3 0 2 3\n")
+    V, F = formats.load_mesh(p)
+    assert V.shape == (4, 3) and F.tolist() == [[0, 1, 2], [0, 2, 3]]

@@ -174,6 +174,7 @@ def _is_float(t: str) -> bool:
 # OFF
 # ----------------------------------------------------------------------------------------------------------
 _OFF_HEADER = re.compile(r"^(ST)?(C)?(N)?(4)?(n)?OFF$")
+_OFF_GLUED = re.compile(r"^((?:ST)?C?N?4?n?OFF)(\d+)$")  # 'OFF8 6 12': the vertex count written against the header
 
 
 def _data_lines(text: str):
@@ -213,6 +214,9 @@ def _off_counts(p: Path, lines) -> tuple[int, int]:
         lineno, tok = next(lines)
     except StopIteration:
         raise _fail(p, "the file is empty") from None
+    glued = _OFF_GLUED.match(tok[0])
+    if glued:
+        tok = [glued.group(1), glued.group(2), *tok[1:]]
     if _OFF_HEADER.match(tok[0]):
         m = _OFF_HEADER.match(tok[0])
         if m.group(4) or m.group(5):
