@@ -385,3 +385,55 @@ def test_export_refuses_other_formats(bl, scene, tmp_path):
     with pytest.raises(RuntimeError, match=r"choose a file name ending in \.dxf, \.svg or \.step"):
         bl.ops.export_mesh.heatparam_pattern(filepath=str(tmp_path / "x.obj"))
     assert not (tmp_path / "x.obj").exists()
+
+
+def _build(out: Path) -> Path:
+    spec = importlib.util.spec_from_file_location("_heatparam_blender_build", EXT / "build.py")
+    build = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(build)
+    return build.build(out)
+
+
+def test_build_zip(tmp_path):
+    """The archive Blender installs: the manifest and the modules at its root, the manifest's required fields."""
+    import zipfile
+
+    tomllib = pytest.importorskip("tomllib")  # Python 3.11+
+    zip_path = _build(tmp_path)
+    names = zipfile.ZipFile(zip_path).namelist()
+    assert names[0] == "blender_manifest.toml" and {"__init__.py", "operators.py", "runner.py"} <= set(names)
+    assert not any("__pycache__" in n or n.endswith(".pyc") for n in names)
+    m = tomllib.loads(zipfile.ZipFile(zip_path).read("blender_manifest.toml").decode())
+    assert m["schema_version"] == "1.0.0" and m["type"] == "add-on" and m["blender_version_min"] >= "4.2.0"
+    assert zip_path.name == f"{m['id']}-{m['version']}.zip" and m["license"] == ["SPDX:MIT"]
+    assert len(m["tagline"]) <= 64 and m["tagline"][-1].isalnum()
+
+
+INSTALL = """
+import sys, bpy
+zip_path, command = sys.argv[1:3]
+assert bpy.ops.extensions.package_install_files(filepath=zip_path, repo="user_default",
+                                                enable_on_install=True) == {"FINISHED"}
+bpy.context.preferences.addons["bl_ext.user_default.heatparam_blender"].preferences.command = command
+bpy.ops.object.select_all(action="DESELECT")
+bpy.ops.mesh.primitive_cylinder_add(vertices=12, end_fill_type="NOTHING")
+print(bpy.ops.uv.heatparam_unwrap(pack="texture"))
+"""
+
+
+def test_zip_installs_as_an_extension(tmp_path):
+    """Blender's own installer takes the archive (it checks the manifest); the installed extension runs the heatparam
+    program set in its preferences. In a fresh process whose user folder is tmp_path."""
+    import os
+    import subprocess
+
+    pytest.importorskip("bpy")
+    command = Path(sys.executable).with_name("heatparam")
+    if not command.is_file():
+        pytest.skip("no heatparam program beside this Python")
+    env = {**os.environ, "HOME": str(tmp_path), "PATH": "/usr/bin:/bin"}  # heatparam found through the preferences
+    out = subprocess.run([sys.executable, "-c", INSTALL, str(_build(tmp_path / "dist")), str(command)], env=env,
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "{'FINISHED'}" in out.stdout
+    assert list((tmp_path / ".config" / "blender").glob("*/extensions/user_default/heatparam_blender/operators.py"))
