@@ -16,7 +16,17 @@ import textwrap
 from pathlib import Path
 
 from heatparam.errors import HeatparamError
-from heatparam.options import GROUPS, UNITS, Option, check_value, cli_options, make_options, to_cli_terms
+from heatparam.options import (
+    GRAIN_RULES,
+    GROUPS,
+    NEST_TIME,
+    UNITS,
+    Option,
+    check_value,
+    cli_options,
+    make_options,
+    to_cli_terms,
+)
 from heatparam.version import __version__
 
 EXIT_BAD_INPUT = 2
@@ -58,6 +68,17 @@ def _positive(text: str, integer: bool = False) -> float:
         raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
     if not (value >= 1 if integer else 0 < value < float("inf")):
         raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+    return value
+
+
+def _nonnegative(text: str) -> float:
+    """argparse ``type``: a finite number of at least 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a finite number of at least 0, got {text!r}") from None
+    if not 0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a finite number of at least 0, got {text!r}")
     return value
 
 
@@ -195,6 +216,12 @@ def _add_unwrap(sub) -> None:
     g.add_argument("--units", choices=UNITS, help="the model's units, stated in every output and message "
                    "(default: mm, with a warning when the part would be under 10 mm or over 100 m across)")
     g.add_argument("--sheet", metavar="WxH", help="DXF/SVG: charts on sheets of this size")
+    g.add_argument("--gap", type=_positive, metavar="G", help="--sheet: spacing between pieces and to the edge, "
+                   "model units (default: 0.5%% of the sheet's shorter side)")
+    g.add_argument("--grain", choices=GRAIN_RULES, default="free", help="--sheet: none keeps each piece's direction, "
+                   "180 allows a half turn, free quarter turns too (default: %(default)s)")
+    g.add_argument("--nest-time", type=_nonnegative, default=NEST_TIME, metavar="S", help="--sheet: seconds to "
+                   "nest the pieces by their outlines; 0 = boxes on shelves (default: %(default)s)")
     g.add_argument("--strain-map", action="store_true", help="SVG: faces coloured by distortion, with a legend")
     g.add_argument("--fit-tolerance", type=_positive, metavar="TOL",
                    help="STEP: fit tolerance (default: 0.1%% of the diagonal)")
@@ -250,9 +277,9 @@ def cmd_unwrap(args: argparse.Namespace) -> int:
     plans = plan(args.output, args.report, args.preview, inputs=(args.input,))
     sheet = None
     if args.sheet:
-        from heatparam.formats.pattern import parse_sheet
+        from heatparam.formats.pattern import Sheets, parse_sheet
 
-        sheet = parse_sheet(args.sheet)
+        sheet = Sheets(parse_sheet(args.sheet), args.gap, args.grain, args.nest_time, args.seed)
     formats = {pl.format for pl in plans}
     for flag, used, where in (("--sheet", args.sheet, ("dxf", "svg")), ("--strain-map", args.strain_map, ("svg",)),
                               ("--fit-tolerance", args.fit_tolerance, ("step",))):

@@ -28,6 +28,12 @@ TIME_STEPS = ("default", "paper")
 BACKENDS = ("auto", "cholespy", "scipy", "pardiso")
 #: the model units the outputs can declare (``formats.units``; listed here so that --help loads nothing)
 UNITS = ("mm", "cm", "m", "in", "ft")
+#: the rotations a pattern piece may take on a sheet (``--grain``): none (the grain kept), a half turn, or free
+#: (quarter turns of the piece and of its minimum-area rectangle's frame)
+GRAIN_RULES = ("none", "180", "free")
+#: seconds the sheet nesting may search by default (``--nest-time``; 0 = the shelf packing of boxes): the first
+#: ordering always runs; the bunny's 26 charts take about 1 s on one sheet
+NEST_TIME = 3.0
 
 #: With ``mds_start auto`` the heat geodesics and MDS are skipped when the conformal start is bijective and its energy
 #: exceeds an isometry's (1) by at most this: no start can be better by more than this, and the polish converges
@@ -189,7 +195,7 @@ OPTIONS: tuple[Option, ...] = (
     Option("texels_per_unit", 0.0, "float", "atlas, pack texture: the texel density, pixels of the --resolution "
            "texture per model unit, the same for every chart; 0 = the largest at which all charts fit (an error when "
            "the density given does not fit)", low=0.0, high=1e12, flag="--texels-per-unit", metavar="D",
-           short="pixels per unit; 0 = the largest that fits", group="atlas"),
+           short="pixels per unit; 0 = largest that fits", group="atlas"),
     Option("unit_name", "model units", "choice", "the model's length unit, a name only (nothing is scaled): the "
            "lengths in messages carry it (the seams warning). heatparam unwrap sets it from --units (default mm, with "
            "a warning when the part would be under 10 mm or over 100 m across in mm)", ("model units", *UNITS),

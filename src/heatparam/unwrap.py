@@ -67,12 +67,19 @@ def write_outputs(V, F, result, plans, *, units: str = DEFAULT_UNITS, sheet=None
 def _pattern(V, F, result, *, sheet, units: str):
     """The flat pattern (charts, loops, seams, laid out) that the DXF and SVG draw; its summary goes into the
     report."""
-    from heatparam.formats.pattern import build_pattern, layout_charts
+    from heatparam.formats.pattern import Sheets, build_pattern, layout_charts
 
-    pattern = layout_charts(build_pattern(V, F, result.uv, result.Fuv, result.uv_vertex,
-                                          chart=getattr(result, "chart", None)), sheet=sheet, units=units)
+    pattern = build_pattern(V, F, result.uv, result.Fuv, result.uv_vertex, chart=getattr(result, "chart", None))
+    if sheet is None:
+        pattern = layout_charts(pattern, units=units)
+    else:
+        sheet = sheet if isinstance(sheet, Sheets) else Sheets(tuple(sheet))
+        pattern = layout_charts(pattern, sheet.size, sheet.gap, units=units, grain=sheet.grain,
+                                nest_time=sheet.nest_time, seed=sheet.seed)
     result.report["pattern"] = {
         "charts": len(pattern.charts), "sheets": len(pattern.sheets), "seams": len(pattern.seams) // 2,
+        "sheet_use": [float(u) for u in pattern.sheet_use],
+        "nesting": {k: (float(v) if isinstance(v, float) else v) for k, v in pattern.nesting.items()},
         "loops": [{"chart": c.id, "kind": lp.kind, "length_3d": lp.length_3d, "length_uv": lp.length_uv,
                    "stretch": lp.stretch} for c in pattern.charts for lp in c.loops],
     }
@@ -94,7 +101,8 @@ def unwrap_file(input, outputs, *, report=None, preview=None, options=None, quie
     units : the model's unit, as ``--units``; None: ``options.unit_name`` if set, else mm assumed (with a warning when
         the part is implausibly sized in mm: ``formats.units.assumed_units_warning``; the report's
         ``units_assumed``). It becomes ``options.unit_name``, which the pipeline's messages name.
-    sheet, strain_map, fit_tolerance : as ``heatparam unwrap``'s flags of the same names.
+    sheet, strain_map, fit_tolerance : as ``heatparam unwrap``'s flags of the same names; ``sheet``: (W, H) or a
+        ``formats.pattern.Sheets`` (size, gap, grain, nest_time, seed).
 
     Returns
     -------

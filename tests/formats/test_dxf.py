@@ -195,8 +195,9 @@ def test_outputs_are_deterministic(tmp_path):
 
 
 def test_shelf_layout_many_charts():
-    """Six strips of the part stacked at the origin: laid out (free, and on sheets) their boxes are pairwise
-    apart, each chart only translated, every chart inside its sheet's frame, sheets side by side."""
+    """Six strips of the part stacked at the origin: laid out (free, and on sheets by the shelf packing,
+    nest_time 0) their boxes are pairwise apart, each chart only translated, every chart inside its sheet's frame,
+    sheets side by side."""
     from heatparam import datasets
 
     sh = datasets.cylinder_with_holes()
@@ -207,7 +208,7 @@ def test_shelf_layout_many_charts():
     uv, Fuv, vs = six.uv, six.Fuv, six.uv_vertex
     sizes = np.array([np.ptp(uv[np.unique(Fuv[chart == c])], axis=0) for c in range(6)])
     for sheet in (None, tuple(sizes.max(0) * (2.6, 1.3))):
-        pat = layout_charts(build_pattern(m.V, m.F, uv, Fuv, vs, chart), sheet=sheet)
+        pat = layout_charts(build_pattern(m.V, m.F, uv, Fuv, vs, chart), sheet=sheet, nest_time=0)
         boxes = [(pat.uv[c.rows].min(0), pat.uv[c.rows].max(0)) for c in pat.charts]
         for i in range(6):
             assert np.allclose(pat.uv[pat.charts[i].rows] - uv[pat.charts[i].rows], pat.charts[i].offset)

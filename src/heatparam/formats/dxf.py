@@ -15,7 +15,7 @@ import os
 import numpy as np
 
 from heatparam.formats.labels import place_labels
-from heatparam.formats.pattern import Pattern
+from heatparam.formats.pattern import Pattern, sheet_notes
 from heatparam.formats.units import insunits
 
 LAYERS = {"OUTLINE": 7, "HOLES": 1, "SEAMS": 5, "ANNOTATION": 3, "SHEET": 8}  # layer → ACI colour
@@ -79,7 +79,8 @@ def write_dxf(path: str | os.PathLike, pattern: Pattern, units: str = "mm", titl
             (lb.x, lb.y), align=TextEntityAlignment.MIDDLE_CENTER)
     lo, _ = pattern.bbox
     left = ", ".join(f"{n} {what}" for what, n in labels.left_out.items() if n)
-    lines = [f"units: {units}", *([f"left out (no room): {left}"] if left else []), *([title] if title else [])]
+    lines = [f"units: {units}", *([f"left out (no room): {left}"] if left else []), *([title] if title else []),
+             *sheet_notes(pattern)]
     for i, line in enumerate(lines):
         msp.add_text(line, height=th, dxfattribs={"layer": "ANNOTATION"}).set_placement(
             (lo[0], lo[1] - (2 + 1.5 * i) * th), align=TextEntityAlignment.LEFT)

@@ -24,13 +24,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from heatparam.errors import HeatparamError
+from heatparam.mesh.nest import Piece, SheetNester, orientations
 from heatparam.mesh.planar import polygon_area
+from heatparam.options import GRAIN_RULES, NEST_TIME
 
 #: Gap between laid-out charts (and to the sheet's edge), as a fraction of the largest chart's bounding-box
 #: diagonal.
 GAP_FRACTION = 0.04
 #: With sheets, the gap is at most this fraction of the sheet's shorter side.
 SHEET_GAP_FRACTION = 0.02
+#: With sheets nested by outlines, the default gap is at most this fraction of the sheet's shorter side (a cutter's
+#: spacing: 5 mm on a 1 m sheet).
+NEST_GAP_FRACTION = 0.005
 
 
 @dataclass
@@ -85,6 +90,7 @@ class Chart:
     iso_max: float
     offset: np.ndarray = field(default_factory=lambda: np.zeros(2))  # translation applied by the layout
     sheet: int = 0
+    turn: np.ndarray = field(default_factory=lambda: np.eye(2))  # (2,2) rotation applied by the layout, first
 
     @property
     def outer(self) -> Loop:
@@ -102,6 +108,8 @@ class Pattern:
     uv : (k,2) float64 the laid-out UV (each chart translated by its ``offset``; a single chart or charts whose
         bounding boxes do not overlap are not moved).
     sheets : (s,4) float64 sheet frames ``x0, y0, width, height`` in UV units, or an empty (0,4) array.
+    sheet_use : (s,) float64 the fraction of each sheet's area its pieces cover.
+    nesting : how the sheets were filled (``"shelf"`` or the nesting's search facts), empty without sheets.
     """
 
     charts: list[Chart]
@@ -112,6 +120,8 @@ class Pattern:
     Fuv: np.ndarray
     chart_of_face: np.ndarray
     sheets: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    sheet_use: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    nesting: dict = field(default_factory=dict)
 
     @property
     def bbox(self) -> np.ndarray:
@@ -337,15 +347,18 @@ def _chain_rows(edges: list[tuple[int, int]]) -> np.ndarray:
 
 
 def layout_charts(pattern: Pattern, sheet: tuple[float, float] | None = None, gap: float | None = None, *,
-                  units: str = "model units") -> Pattern:
-    """Translate charts so that their bounding boxes do not overlap (in place; returns the pattern).
+                  units: str = "model units", grain: str = "free", nest_time: float = NEST_TIME,
+                  seed: int = 0) -> Pattern:
+    """Move charts apart (in place; returns the pattern): rigid motions only, each chart's shape unchanged.
 
     Without ``sheet``, charts whose bounding boxes are already pairwise disjoint keep their positions (a single
     chart is never moved, so the pattern matches the map's UVs exactly); otherwise all charts are placed on
     shelves (tallest first) of a width that makes the arrangement roughly square. With ``sheet = (W, H)`` (UV
-    units) charts are packed onto sheets of that size, placed side by side with a gap, first-fit decreasing
-    height; a chart larger than the sheet raises HeatparamError (its lengths named in ``units``). See the module
-    docstring for why shelves.
+    units) charts are nested onto sheets of that size by their true outlines (``mesh.nest.SheetNester``: rasters
+    of the pieces, ``gap`` apart and from the sheet's edge, turned as ``grain`` allows, the best of the orderings
+    tried within ``nest_time`` seconds, seeded by ``seed``), one sheet filled before the next; ``nest_time`` 0:
+    the boxes on shelves, translated only (first-fit decreasing height). A chart larger than the sheet raises
+    HeatparamError (its lengths named in ``units``). ``pattern.sheet_use``: the covered fraction of each sheet.
     """
     charts = pattern.charts
     lo = np.array([pattern.uv[c.rows].min(axis=0) for c in charts])
@@ -354,41 +367,91 @@ def layout_charts(pattern: Pattern, sheet: tuple[float, float] | None = None, ga
     if gap is None:
         gap = GAP_FRACTION * float(np.linalg.norm(size, axis=1).max())
         if sheet is not None:
-            gap = min(gap, SHEET_GAP_FRACTION * min(sheet))
+            gap = min(gap, (NEST_GAP_FRACTION if nest_time > 0 else SHEET_GAP_FRACTION) * min(sheet))
+    turns = [np.eye(2)] * len(charts)
     if sheet is None:
         if len(charts) == 1 or not _any_overlap(lo, hi, gap / 2):
             pattern.sheets = np.zeros((0, 4))
             return pattern
         width = max(float(size[:, 0].max()), float(np.sqrt(((size + gap) ** 2).prod(axis=1).sum())))
         pos, sheet_of = _shelves(size, width, np.inf, gap, margin=0.0)
-        origin = np.zeros(2)
-        frames = np.zeros((0, 4))
+        offsets, frames = pos - lo, np.zeros((0, 4))
+    elif nest_time > 0:
+        turns, offsets, sheet_of, frames = _nested(pattern, sheet, gap, units, grain, nest_time, seed)
     else:
         W, H = (float(x) for x in sheet)
         too_big = np.flatnonzero((size[:, 0] + 2 * gap > W) | (size[:, 1] + 2 * gap > H))
         if len(too_big):
             c = too_big[0]
-            raise HeatparamError(f"chart {charts[c].id} ({size[c, 0]:.4g} x {size[c, 1]:.4g} {units}) does not fit "
-                                 f"on a {W:g} x {H:g} {units} sheet with a {gap:.3g} {units} margin — use a larger "
-                                 "--sheet")
+            _refuse(charts[c].id, size[c], sheet, gap, units)
         pos, sheet_of = _shelves(size, W - 2 * gap, H - 2 * gap, gap, margin=gap)
-        origin = np.zeros(2)
-        n_sheets = int(sheet_of.max()) + 1
         stride = W + 2 * gap
         pos[:, 0] += sheet_of * stride
-        frames = np.array([[s * stride, 0.0, W, H] for s in range(n_sheets)])
-    new_uv = pattern.uv.copy()
-    for i, c in enumerate(charts):
-        off = origin + pos[i] - lo[i]
-        c.offset = off
-        c.sheet = int(sheet_of[i])
-        new_uv[c.rows] = pattern.uv[c.rows] + off
-    pattern.uv = new_uv
+        offsets = pos - lo
+        frames = np.array([[s * stride, 0.0, W, H] for s in range(int(sheet_of.max()) + 1)])
+        pattern.nesting = {"method": "shelf", "gap": gap}
+    _move(pattern, turns, offsets, sheet_of)
     pattern.sheets = frames
-    for s in pattern.seams:
-        ch = next(c for c in charts if c.id == s.chart)
-        s.label_at = s.label_at + ch.offset
+    pattern.sheet_use = _sheet_use(pattern, len(frames))
     return pattern
+
+
+def _refuse(chart: int, size: np.ndarray, sheet: tuple[float, float], gap: float, units: str) -> None:
+    W, H = sheet
+    raise HeatparamError(f"chart {chart} ({size[0]:.4g} x {size[1]:.4g} {units}) does not fit on a {W:g} x {H:g} "
+                         f"{units} sheet with a {gap:.3g} {units} margin — use a larger --sheet")
+
+
+def _nested(pattern: Pattern, sheet: tuple[float, float], gap: float, units: str, grain: str, seconds: float,
+            seed: int) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
+    """The charts nested on sheets by their outlines: (rotation (2,2) of each, offsets (c,2), sheet of each (c,),
+    frames (s,4)); the search facts go to ``pattern.nesting``."""
+    if grain not in GRAIN_RULES:
+        raise HeatparamError(f"grain must be one of {', '.join(GRAIN_RULES)}, got {grain!r}")
+    W, H = (float(x) for x in sheet)
+    pieces = []
+    for c in pattern.charts:
+        local = np.full(len(pattern.uv), -1, dtype=np.int64)
+        local[c.rows] = np.arange(len(c.rows))
+        P = pattern.uv[c.rows]
+        pieces.append(Piece(P, local[pattern.Fuv[c.faces]], orientations(P, grain)))
+    nester = SheetNester(pieces, W, H, gap)
+    big = nester.too_big()
+    if big:
+        i = big[0]
+        ext = [np.ptp(pieces[i].P @ R.T, axis=0) for R in pieces[i].rotations]
+        _refuse(pattern.charts[i].id, min(ext, key=lambda e: max(e[0] / W, e[1] / H)), sheet, gap, units)
+    placed, grids, facts = nester.nested(seconds, seed)
+    stride = W + 2 * gap
+    offsets = np.array([p.t + np.array([p.sheet * stride, 0.0]) for p in placed])
+    pattern.nesting = {"method": "outlines", "gap": gap, "grain": grain, "seed": seed, **facts}
+    return ([p.R for p in placed], offsets, np.array([p.sheet for p in placed], dtype=np.int64),
+            np.array([[s * stride, 0.0, W, H] for s in range(len(grids))]))
+
+
+def _move(pattern: Pattern, turns: list[np.ndarray], offsets: np.ndarray, sheet_of: np.ndarray) -> None:
+    """Each chart's rows x -> x @ R.T + offset, its seam labels with it."""
+    new_uv = pattern.uv.copy()
+    for i, c in enumerate(pattern.charts):
+        c.offset, c.turn, c.sheet = offsets[i], turns[i], int(sheet_of[i])
+        new_uv[c.rows] = pattern.uv[c.rows] @ turns[i].T + offsets[i]
+    pattern.uv = new_uv
+    by_id = {c.id: c for c in pattern.charts}
+    for s in pattern.seams:
+        ch = by_id[s.chart]
+        s.label_at = ch.turn @ s.label_at + ch.offset
+        s.inward = ch.turn @ s.inward
+        s.angle = s.angle + float(np.degrees(np.arctan2(ch.turn[1, 0], ch.turn[0, 0])))
+
+
+def _sheet_use(pattern: Pattern, n_sheets: int) -> np.ndarray:
+    """(s,) the fraction of each sheet's area covered by its charts' faces."""
+    use = np.zeros(n_sheets)
+    for c in pattern.charts if n_sheets else ():
+        T = pattern.uv[pattern.Fuv[c.faces]]
+        e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
+        use[c.sheet] += 0.5 * float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum())
+    return use / (pattern.sheets[:, 2] * pattern.sheets[:, 3]) if n_sheets else use
 
 
 def _any_overlap(lo: np.ndarray, hi: np.ndarray, pad: float) -> bool:
@@ -427,6 +490,24 @@ def _shelves(size: np.ndarray, width: float, height: float, gap: float, margin: 
             pos[i] = (margin, margin + y)
             bin_of[i] = b
     return pos, bin_of
+
+
+@dataclass
+class Sheets:
+    """How pattern pieces go on sheets (``unwrap --sheet``): the sheet's size (W, H), the ``gap`` between pieces and
+    to the edge (None: the default), the ``grain`` rule, the nesting's time budget (s) and seed."""
+
+    size: tuple[float, float]
+    gap: float | None = None
+    grain: str = "free"
+    nest_time: float = NEST_TIME
+    seed: int = 0
+
+
+def sheet_notes(pattern: Pattern) -> list[str]:
+    """One annotation line per sheet: how much of it the pieces cover."""
+    n = len(pattern.sheet_use)
+    return [f"sheet {i + 1} of {n}: {u:.1%} used" for i, u in enumerate(pattern.sheet_use)]
 
 
 def parse_sheet(text: str) -> tuple[float, float]:

@@ -22,7 +22,7 @@ import numpy as np
 
 from heatparam.formats.dxf import text_height
 from heatparam.formats.labels import GLYPH_WIDTH, Labels, place_labels
-from heatparam.formats.pattern import Pattern, face_iso
+from heatparam.formats.pattern import Pattern, face_iso, sheet_notes
 from heatparam.formats.units import svg_length, uv_unit
 
 STYLE = """
@@ -128,9 +128,13 @@ def _sheet_group(pattern: Pattern, tr, sw: float) -> list[str]:
     if not len(pattern.sheets):
         return []
     out = [f'<g id="sheet" class="sheet" stroke-width="{sw:.4g}">']
-    for sx, sy, w, h in pattern.sheets:
+    th = text_height(pattern)
+    for (sx, sy, w, h), note in zip(pattern.sheets, sheet_notes(pattern), strict=True):
         P = tr(np.array([[sx, sy], [sx + w, sy], [sx + w, sy + h], [sx, sy + h]]))
         out.append(f'<polygon points="{_fmt(P)}"/>')
+        x, y = tr(np.array([sx, sy - 1.2 * th]))[0]  # under the frame, in the drawing's margin
+        out.append(f'<text x="{x:.6g}" y="{y:.6g}" font-size="{th:.4g}" stroke="none" fill="#888888">'
+                   f'{escape(note)}</text>')
     out.append("</g>")
     return out
 

@@ -4,7 +4,7 @@ only, as xatlas packs its charts (``BitImage``).
 Each piece is rasterized conservatively (every pixel that any of its triangles touches, holes left empty), in each
 orientation allowed. A grid keeps the pixels of the pieces already placed; a new piece's raster, dilated by the gap
 in whole pixels (a square: Chebyshev distance), goes to the lowest, then leftmost, position where it meets no
-occupied pixel, and of its orientations the one whose top ends lowest wins (bottom-left fill). Two pieces whose
+occupied pixel, and of its orientations the one placed lowest, then leftmost, wins (bottom-left fill). Two pieces whose
 pixel sets are ``k`` empty pixels apart in x or y are at least ``k`` pixel widths apart in the plane: the gap holds
 exactly, whatever the rounding, and no two pieces overlap. Holes in a piece stay free for smaller pieces.
 
@@ -15,6 +15,7 @@ costs one step per occupied run); the rest is numpy.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,7 +23,7 @@ from numba import njit
 from scipy import ndimage
 from scipy.spatial import ConvexHull, QhullError
 
-__all__ = ["Grid", "Piece", "min_area_rotation", "orientations"]
+__all__ = ["Grid", "Piece", "Placement", "SheetNester", "min_area_rotation", "orientations"]
 
 #: Pixels touched within this fraction of a pixel count as touched: rounding never loses a pixel a piece touches.
 TOUCH_EPS = 1e-7
@@ -47,6 +48,12 @@ def min_area_rotation(P: np.ndarray) -> np.ndarray:
         if area < best - 1e-12 * abs(best if np.isfinite(best) else 1):
             best, R_best = area, R[i] if ext[i, 0] >= ext[i, 1] else np.array([[0, 1], [-1, 0]]) @ R[i]
     return R_best
+
+
+def _area2(P: np.ndarray, T: np.ndarray) -> float:
+    """The area covered by triangles T (t,3) over P (n,2) (each counted positive)."""
+    e1, e2 = P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]
+    return 0.5 * float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum())
 
 
 def _quarter_turns(R: np.ndarray) -> list[np.ndarray]:
@@ -179,14 +186,16 @@ class Piece:
     def shapes(self, scale: float, gap_px: int) -> list[Shape]:
         """Each orientation's raster at ``scale`` pixels per unit, dilated by ``gap_px`` pixels for the scan."""
         out = []
-        st = np.ones((2 * gap_px + 1, 2 * gap_px + 1), dtype=bool)
         for R in self.rotations:
             Q = self.P @ R.T
             lo = Q.min(axis=0)
             Qp = (Q - lo) * scale
             h, w = int(math.floor(Qp[:, 1].max())) + 1, int(math.floor(Qp[:, 0].max())) + 1
             ras = _raster(np.ascontiguousarray(Qp[self.T]), h, w)
-            dil = ndimage.binary_dilation(np.pad(ras, gap_px), structure=st) if gap_px else ras.astype(bool)
+            dil = np.pad(ras, gap_px)
+            if gap_px:  # a square of side 2 gap + 1: two separable running maxima
+                dil = ndimage.maximum_filter1d(ndimage.maximum_filter1d(dil, 2 * gap_px + 1, axis=0),
+                                               2 * gap_px + 1, axis=1)
             out.append(Shape(R, lo, ras, _runs(dil, gap_px)))
         return out
 
@@ -202,15 +211,110 @@ class Grid:
         self.top = 0  # the highest row used + 1
 
     def best(self, shapes: list[Shape]) -> tuple[int, int, int] | None:
-        """(orientation index, y, x) of the placement whose top ends lowest (then leftmost), or None."""
+        """(orientation index, y, x) of the lowest, then leftmost placement over the orientations, or None."""
         best = None
         for k, s in enumerate(shapes):
             h, w = s.raster.shape
             y, x = _first_fit(self.nxt, *s.runs, h, w, self.margin)
-            if y >= 0 and (best is None or (y + h, x) < best[0]):
-                best = ((y + h, x), k, y, x)
+            if y >= 0 and (best is None or (y, x) < best[0]):
+                best = ((y, x), k, y, x)
         return None if best is None else best[1:]
 
     def place(self, shape: Shape, y: int, x: int) -> None:
         _stamp(self.occ, self.nxt, shape.raster, y, x)
         self.top = max(self.top, y + shape.raster.shape[0])
+
+
+#: Sheets are rasterized with this many pixels along their longer side: the quantization costs about one pixel
+#: along each outline (a fraction of a percent of a sheet of a few dozen pieces).
+SHEET_PIXELS = 1024
+#: Orderings tried within the time budget: by area, by longer side, by perimeter of the box, then shuffles of the
+#: area order (seeded).
+NEST_TRIES = 12
+
+
+@dataclass
+class Placement:
+    """Where a piece went: its sheet, and the rigid motion x -> x @ R.T + t (model units, sheet-local)."""
+
+    sheet: int
+    R: np.ndarray
+    t: np.ndarray
+
+
+class SheetNester:
+    """Pieces nested on sheets of W x H model units, ``gap`` apart and from the sheet's edge, first fit: a piece
+    goes on the first sheet where it fits (bottom-left), a new sheet opens when it fits on none.
+
+    pieces : list of :class:`Piece`. W, H, gap : model units (gap > 0)."""
+
+    def __init__(self, pieces: list[Piece], W: float, H: float, gap: float, pixels: int = SHEET_PIXELS):
+        self.px = max(W, H) / pixels
+        self.gh, self.gw = int(math.floor(H / self.px)), int(math.floor(W / self.px))
+        self.gap_px = max(int(math.ceil(gap / self.px - 1e-9)), 1)
+        self.shapes = [p.shapes(1.0 / self.px, self.gap_px) for p in pieces]
+        self.areas = np.array([abs(_area2(p.P, p.T)) for p in pieces])
+        self.sheet_area = W * H
+
+    def too_big(self) -> list[int]:
+        """The pieces that fit on an empty sheet in none of their orientations."""
+        inner_h, inner_w = self.gh - 2 * self.gap_px, self.gw - 2 * self.gap_px
+        return [i for i, sh in enumerate(self.shapes)
+                if not any(s.raster.shape[0] <= inner_h and s.raster.shape[1] <= inner_w for s in sh)]
+
+    def run(self, order: np.ndarray) -> tuple[list[Placement], list[Grid]] | None:
+        """The pieces placed in ``order``; None when one fits on no empty sheet."""
+        grids: list[Grid] = []
+        out: list = [None] * len(self.shapes)
+        for i in order:
+            shapes = self.shapes[i]
+            for s, grid in enumerate([*grids, None]):
+                if grid is None:
+                    grid = Grid(self.gh, self.gw, self.gap_px)
+                    grids.append(grid)
+                where = grid.best(shapes)
+                if where is not None:
+                    k, y, x = where
+                    grid.place(shapes[k], y, x)
+                    sh = shapes[k]
+                    out[i] = Placement(s, sh.R, np.array([x, y], dtype=np.float64) * self.px - sh.lo)
+                    break
+            else:
+                return None
+        return out, grids
+
+    def orders(self, seed: int) -> list[np.ndarray]:
+        """The orderings to try, in turn (``NEST_TRIES`` in all)."""
+        box = np.array([[s.raster.shape[0], s.raster.shape[1]] for s in (sh[0] for sh in self.shapes)], dtype=float)
+        keys = [-self.areas, -box.max(axis=1), -box.sum(axis=1)]
+        out = [np.lexsort((np.arange(len(k)), k)) for k in keys]
+        rng = np.random.default_rng(seed)
+        while len(out) < NEST_TRIES:
+            jitter = self.areas * rng.uniform(0.7, 1.3, len(self.areas))
+            out.append(np.argsort(-jitter, kind="stable"))
+        return out
+
+    def score(self, grids: list[Grid]) -> tuple[int, int]:
+        """Fewer sheets first, then the lower top on the last sheet."""
+        return len(grids), grids[-1].top
+
+    def nested(self, seconds: float, seed: int) -> tuple[list[Placement], list[Grid], dict]:
+        """The best of the orderings (:meth:`orders`) tried within ``seconds`` (the first always): (placements,
+        grids, search facts). The same pieces and seed give the same result whenever the search ends by its own
+        rule (one sheet, or every ordering tried) before the time is up."""
+        t0 = time.perf_counter()
+        best, tries, timed_out = None, 0, False
+        for order in self.orders(seed):
+            if best is not None and time.perf_counter() - t0 > seconds:
+                timed_out = True
+                break
+            got = self.run(order)
+            tries += 1
+            if got is not None and (best is None or self.score(got[1]) < self.score(best[1])):
+                best = got
+            if best is not None and len(best[1]) == 1:
+                break  # nothing left to gain
+        if best is None:
+            raise ValueError("a piece fits on no empty sheet")
+        return best[0], best[1], {"orderings_tried": tries, "stopped_by_time": timed_out,
+                                  "seconds": time.perf_counter() - t0, "pixel": self.px}
