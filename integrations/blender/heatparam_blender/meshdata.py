@@ -125,44 +125,37 @@ def triangles(mesh, loops: Loops, chosen_polygons: np.ndarray, seam: np.ndarray,
     return Triangles(world * factor, vert[tri_loops], tri_loops)
 
 
-def _uv_joins(F: np.ndarray, corner_uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Pairs (i, j) of triangles that share an edge whose two sides have the same UVs at both ends (F (t,3) int64,
-    corner_uv (t,3,2))."""
-    a, b = F.ravel(), np.roll(F, -1, axis=1).ravel()  # corner j's edge runs to corner j+1
+def _side_pairs(F: np.ndarray, corner_uv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The two sides of each edge shared by two triangles (F (t,3) int64, corner_uv (t,3,2)): side ids i, j (side
+    3·f + k runs from corner k of face f to corner k+1) and whether the UVs of the two sides agree at both ends."""
+    a, b = F.ravel(), np.roll(F, -1, axis=1).ravel()
     ua, ub = corner_uv.reshape(-1, 2), np.roll(corner_uv, -1, axis=1).reshape(-1, 2)
     lower = (a < b)[:, None]
     at_lo, at_hi = np.where(lower, ua, ub), np.where(lower, ub, ua)  # each side's UV at the edge's ends, in order
     key = np.minimum(a, b) * (int(F.max()) + 1 if len(F) else 1) + np.maximum(a, b)
     i, j, _ = _same_key_pairs(key, np.arange(len(a)))
-    same = np.all(at_lo[i] == at_lo[j], axis=1) & np.all(at_hi[i] == at_hi[j], axis=1)
-    return i[same] // 3, j[same] // 3
+    return i, j, np.all(at_lo[i] == at_lo[j], axis=1) & np.all(at_hi[i] == at_hi[j], axis=1)
 
 
-def chart_borders(loops: Loops, chosen: np.ndarray, tris: Triangles, corner_uv: np.ndarray, n_edges: int
-                  ) -> np.ndarray:
-    """(E,) bool: heatparam's UV cuts moved onto polygon edges (``chosen`` (L,) bool: the chosen loops). Each
-    polygon goes wholly to the side of its largest triangle: its chart (edges between polygons of different charts
-    are cut) and, where a cut runs through it inside one chart (a hole's seam), its edges on the other side are
-    cut. Cutting there and flattening again gives charts that one UV per loop can draw."""
-    i, j = _uv_joins(tris.F, corner_uv)
-    t = len(tris.F)
-    chart = _components(t, i, j)
+def chart_borders(loops: Loops, tris: Triangles, corner_uv: np.ndarray, n_edges: int) -> np.ndarray:
+    """(E,) bool: heatparam's cuts (chart borders and holes' seams) moved onto polygon edges. Its cuts along polygon
+    edges stay; a polygon that a cut runs through goes wholly to the side of its largest triangle, and its edges on
+    the other side are cut instead. Cutting there and flattening again gives charts that one UV per loop can draw."""
+    i, j, same = _side_pairs(tris.F, corner_uv)
+    side_loop = tris.corner_loop.ravel()
     poly = loops.polygon[tris.corner_loop[:, 0]]
-    inside = poly[i] == poly[j]
-    piece = _components(t, i[inside], j[inside])  # the triangles of one polygon that its cuts leave together
+    out = np.zeros(n_edges, dtype=bool)
+    across = poly[i // 3] != poly[j // 3]
+    out[loops.edge[side_loop[i[across & ~same]]]] = True
+    inside = ~across & same
+    piece = _components(len(tris.F), i[inside] // 3, j[inside] // 3)  # a polygon's triangles its cuts leave together
     P = tris.V[tris.F]
     order = np.argsort(np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1), kind="stable")
     biggest = np.zeros(int(loops.polygon.max()) + 1, dtype=np.int64)
     biggest[poly[order]] = order  # the largest triangle writes last
-    key, end = loops.edge_ends(chosen)
-    a, b, k = _same_key_pairs(key, end)
-    poly_chart = chart[biggest]
-    out = np.zeros(n_edges, dtype=bool)
-    out[k[poly_chart[loops.polygon[a]] != poly_chart[loops.polygon[b]]] // loops.vertex_count] = True
-    cl, nxt = tris.corner_loop, np.roll(tris.corner_loop, -1, axis=1)
-    on_border = loops.next[cl] == nxt  # a triangle side that is a polygon edge
-    other_side = (piece != piece[biggest[poly]])[:, None] & on_border
-    out[loops.edge[cl[other_side]]] = True
+    cl = tris.corner_loop
+    on_border = loops.next[cl] == np.roll(cl, -1, axis=1)  # a triangle side that is a polygon edge
+    out[loops.edge[cl[(piece != piece[biggest[poly]])[:, None] & on_border]]] = True
     return out
 
 

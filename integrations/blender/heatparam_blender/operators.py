@@ -195,7 +195,7 @@ class HEATPARAM_OT_unwrap(bpy.types.Operator):
             uv, split = loop_uvs(tris, corner_uv, old)
             if not split.any():
                 break
-            seam = seam | chart_borders(loops, chosen[loops.polygon], tris, corner_uv, len(obj.data.edges))
+            seam = seam | chart_borders(loops, tris, corner_uv, len(obj.data.edges))
         return uv, split
 
 
