@@ -1,9 +1,11 @@
 """``heatparam batch`` on 1 vs 2 local Dask workers: wall time of the whole batch. A markdown table on stdout.
 
-Usage: ``python bench/bench_batch.py [--repeat R] [--heavy]`` — the folder of ``tests/test_batch.py`` (19 meshes:
-15 generated shapes at coarse resolution, halftunnel.off, woody.obj and cow.off from ../shared/meshes — cow is
-closed and refused — a malformed OBJ and ``part.obj`` in two subfolders); ``--heavy`` adds camelhead.off,
-beetle.off and bump-domain.obj so that the pipeline, not the per-mesh process start, dominates. Each run is a fresh
+Usage: ``python bench/bench_batch.py [--repeat R] [--heavy | --tiny N]`` — the folder of ``tests/test_batch.py``
+(19 meshes: 15 generated shapes at coarse resolution, halftunnel.off, woody.obj and cow.off from ../shared/meshes,
+a malformed OBJ and ``part.obj`` in two subfolders); ``--heavy`` adds camelhead.off, beetle.off and
+bump-domain.obj so that the pipeline, not the per-mesh process start, dominates; ``--tiny N`` is a folder of N
+meshes of at most 320 faces instead (open patches, closed primitives, a torus, with seeded random sizes), where
+the per-mesh overhead dominates (the files-per-second figure). Each run is a fresh
 ``--force`` batch into a new folder; wall time includes starting the LocalCluster. Also printed: the sum of the
 meshes' task seconds (each mesh's process, start to end) and the mean per-mesh overhead (task seconds minus the
 pipeline's own timings).
@@ -55,14 +57,49 @@ def make_folder(root: Path, heavy: bool) -> None:
     (root / "bad" / "broken.obj").write_text("v 0 0 0\nv 1 0\nf 1 2 three\n")
 
 
+def make_tiny(root: Path, n: int) -> None:
+    """``n`` meshes of at most 320 faces: open patches and closed primitives of seeded random size and shape."""
+    import trimesh
+
+    rng = np.random.default_rng(7)
+    makers = [
+        lambda: _shape(datasets.flat_disk(h=rng.uniform(0.18, 0.3))),
+        lambda: _shape(datasets.cylinder_patch(h=rng.uniform(0.22, 0.35))),
+        lambda: _shape(datasets.curved_cap_with_holes(h=rng.uniform(0.25, 0.35))),
+        lambda: _arrays(trimesh.creation.icosphere(1, radius=rng.uniform(0.5, 2))),
+        lambda: _arrays(trimesh.creation.box(rng.uniform(0.5, 2, 3))),
+        lambda: _arrays(trimesh.creation.cylinder(rng.uniform(0.5, 1), rng.uniform(1, 3),
+                                                  sections=int(rng.integers(8, 24)))),
+        lambda: _arrays(trimesh.creation.cone(rng.uniform(0.5, 1), rng.uniform(1, 3),
+                                              sections=int(rng.integers(8, 24)))),
+        lambda: _arrays(trimesh.creation.torus(1, rng.uniform(0.2, 0.4), 16, 8)),
+    ]
+    for i in range(n):
+        V, F = makers[i % len(makers)]()
+        assert len(F) <= 320, (i, len(F))
+        _write_obj(root / f"tiny/{i:03d}.obj", V, F)
+
+
+def _shape(s) -> tuple[np.ndarray, np.ndarray]:
+    return s.V, s.F
+
+
+def _arrays(m) -> tuple[np.ndarray, np.ndarray]:
+    return np.asarray(m.vertices, float), np.asarray(m.faces, np.int64)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--heavy", action="store_true")
+    ap.add_argument("--tiny", type=int, default=0, metavar="N")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / "meshes"
-        make_folder(root, args.heavy)
+        if args.tiny:
+            make_tiny(root, args.tiny)
+        else:
+            make_folder(root, args.heavy)
         n = sum(1 for p in root.rglob("*") if p.is_file())
         print(f"# heatparam batch, 1 vs 2 workers — {time.strftime('%Y-%m-%d')} — {machine()}\n")
         print(f"{n} meshes{' (with --heavy)' if args.heavy else ''}, LocalCluster of single-threaded worker "
@@ -84,8 +121,8 @@ def main() -> None:
                         rep = json.loads((out / r["output"]).with_suffix(".json").read_text())
                         over.append(r["seconds"] - sum(rep["timings_s"].values()))
                 c = s["counts"]
-                print(f"| {workers} | {run + 1} | {wall:.1f} | {c['ok']} | {c['refused']} | {c['failed']} | "
-                      f"{task_s:.1f} | {np.mean(over):.2f} |", flush=True)
+                print(f"| {workers} | {run + 1} | {wall:.1f} ({n / wall:.1f} files/s) | {c['ok']} | {c['refused']} | "
+                      f"{c['failed']} | {task_s:.1f} | {np.mean(over):.2f} |", flush=True)
         print(f"\nwall time ratio 1 worker / 2 workers (best of {args.repeat}): {best[1] / best[2]:.2f}")
 
 

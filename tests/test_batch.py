@@ -253,7 +253,9 @@ def test_killed_worker_mid_run(library, tmp_path, cluster_client):
 
 def test_task_time_and_memory_limits(tmp_path, cluster_client):
     src = shared_mesh("woody.obj")
-    s = heatparam.batch(src, tmp_path / "t", client=cluster_client, task_timeout=0.2)
+    big = datasets.cylinder_patch(h=0.012)  # ~40k faces: seconds of work, far past the limit
+    _write_obj(tmp_path / "big.obj", big.V, big.F)
+    s = heatparam.batch(tmp_path / "big.obj", tmp_path / "t", client=cluster_client, task_timeout=0.2)
     assert s["rows"][0]["status"] == "failed" and "timed out after 0.2 s" in s["rows"][0]["reason"]
     s = heatparam.batch([src], tmp_path / "m", client=cluster_client, task_memory="20MB")
     assert s["rows"][0]["status"] == "failed" and "memory limit" in s["rows"][0]["reason"]

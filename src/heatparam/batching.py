@@ -8,12 +8,14 @@ Design (and why):
 
 - **The job is ``heatparam unwrap``** (``unwrap.unwrap_file``), so a batch output is the ``unwrap`` output, byte for
   byte (the report JSON differs only by its timings and the ``batch`` manifest below).
-- **One subprocess per mesh**, started by the Dask task, so that a task can be held to a wall-time limit
-  (``--task-timeout``) and a memory limit (``--task-memory``; default: the Dask worker's ``memory_limit``): the
-  task polls the subprocess's resident memory and kills it past either limit. A thread cannot be stopped from
-  outside, a subprocess can; it also gives each mesh its own peak-memory figure, and a crash (segfault, OOM
-  kill) of one mesh takes down only its subprocess. The subprocess dies with its worker (``PR_SET_PDEATHSIG`` on
-  Linux): killing a worker kills the meshes it was running, and Dask reruns them elsewhere. A worker that dies is
+- **One process per mesh**, so that a task can be held to a wall-time limit (``--task-timeout``) and a memory
+  limit (``--task-memory``, on the process's resident memory; default: the Dask worker's ``memory_limit``): the
+  task polls the process and kills it past either limit. A thread cannot be stopped from outside, a process can;
+  it also gives each mesh its own peak-memory figure, and a crash (segfault, OOM kill) of one mesh takes down only
+  its process. The process is forked by a warm job server (``job_server``: one per worker thread, with heatparam
+  and its libraries already imported), so a small mesh costs milliseconds beyond its own work, not the half
+  second of a fresh interpreter; without ``fork`` it is a fresh subprocess. Both die with their worker
+  (``PR_SET_PDEATHSIG`` on Linux): killing a worker kills the meshes it was running, and Dask reruns them elsewhere. A worker that dies is
   retried once (our ``LocalCluster`` sets ``distributed.scheduler.allowed-failures`` to 1; an external scheduler
   uses its own setting, default 3), then the mesh is recorded as failed.
 - **Never a partial file**: the subprocess writes into a hidden folder ``.heatparam-tmp-*`` beside the outputs;
@@ -34,7 +36,6 @@ given as files or globs go to the top of OUTDIR, or below the glob's fixed folde
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import dataclasses
 import glob
 import hashlib
@@ -45,11 +46,13 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 import uuid
 from pathlib import Path, PurePosixPath
 
 from heatparam.errors import HeatparamError, ResourceError
+from heatparam.job_server import JobServer, die_with_parent
 from heatparam.options import Options, make_options
 from heatparam.version import __version__
 
@@ -310,12 +313,6 @@ def _job_main(tmp: str) -> None:
     (tmp_p / "result.json").write_text(json.dumps(out))
 
 
-def _die_with_parent() -> None:  # pragma: no cover - runs in the child between fork and exec
-    """Linux: the child gets SIGKILL when the thread that started it (the Dask task) dies with its worker."""
-    with contextlib.suppress(Exception):
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG = 1
-
-
 def _task_memory_default() -> int | None:
     try:
         from distributed import get_worker
@@ -326,45 +323,86 @@ def _task_memory_default() -> int | None:
         return None
 
 
-def _watch(proc: subprocess.Popen, timeout: float | None, mem_limit: int | None, t0: float) -> tuple[int, str | None]:
-    """Poll the running job ``proc`` until it ends, killing it past ``mem_limit`` bytes of resident memory or
-    ``timeout`` seconds since ``t0``. Returns (peak resident bytes seen, why it was killed or None)."""
+class _Child:
+    """A job started as a plain subprocess (where there is no ``fork``, or its job server would not start)."""
+
+    def __init__(self, tmp: Path):
+        with open(tmp / "log.txt", "wb") as log:
+            self.proc = subprocess.Popen(
+                [sys.executable, "-c", "import sys; from heatparam.batching import _job_main; _job_main(sys.argv[1])",
+                 str(tmp)], stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT, preexec_fn=die_with_parent)
+        self.pid = self.proc.pid
+
+    def ended(self, timeout: float | None) -> int | None:
+        try:
+            return self.proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            return None
+
+
+class _Forked:
+    """A job forked by this worker thread's warm job server (``job_server``)."""
+
+    def __init__(self, server: JobServer, tmp: Path):
+        self.server = server
+        self.pid = server.start(str(tmp))
+
+    def ended(self, timeout: float | None) -> int | None:
+        return self.server.ended(timeout)
+
+
+#: One warm job server per worker thread, started by its first job.
+_SERVERS: dict[int, JobServer] = {}
+_SERVER_COMMAND = [sys.executable, "-c", "from heatparam.batching import _job_main; "
+                   "from heatparam.job_server import serve; serve(_job_main)"]
+
+
+def _start_job(tmp: Path) -> _Child | _Forked:
+    """The job on ``tmp``, forked by this thread's job server where there is one, else a fresh subprocess."""
+    if not hasattr(os, "fork"):
+        return _Child(tmp)
+    key = threading.get_ident()
+    try:
+        if key not in _SERVERS or not _SERVERS[key].alive():
+            _SERVERS[key] = JobServer(_SERVER_COMMAND)
+        return _Forked(_SERVERS[key], tmp)
+    except OSError:
+        _SERVERS.pop(key, None)
+        return _Child(tmp)
+
+
+def _run_process(tmp: Path, timeout: float | None, mem_limit: int | None, t0: float) -> tuple[int, int, str | None]:
+    """Run :func:`_job_main` on ``tmp`` in a process of its own (output into ``tmp/log.txt``), killed past
+    ``mem_limit`` bytes of resident memory or ``timeout`` seconds since ``t0``; it never outlives this call.
+    Returns (its exit code, the peak resident bytes seen, why it was killed or None)."""
     import psutil
 
-    peak, reason = 0, None
-    ps = psutil.Process(proc.pid)
-    while proc.poll() is None:
-        with contextlib.suppress(psutil.Error):
-            rss = ps.memory_info().rss
-            peak = max(peak, rss)
-            if mem_limit and rss > mem_limit:
-                reason = f"exceeded the task memory limit ({mem_limit / 2**20:.0f} MiB)"
-        if timeout and time.perf_counter() - t0 > timeout:
-            reason = f"timed out after {timeout:g} s (--task-timeout)"
-        if reason:
-            proc.kill()
-            proc.wait()
-            break
-        time.sleep(POLL_S)
-    return peak, reason
-
-
-def _run_subprocess(tmp: Path, timeout: float | None, mem_limit: int | None,
-                    t0: float) -> tuple[int, int, str | None]:
-    """Run :func:`_job_main` on ``tmp`` in a subprocess (output into ``tmp/log.txt``) under the limits; it never
-    outlives this call. Returns (its exit code, peak resident bytes, why it was killed or None)."""
-    with open(tmp / "log.txt", "wb") as log:
-        proc = subprocess.Popen(
-            [sys.executable, "-c", "import sys; from heatparam.batching import _job_main; _job_main(sys.argv[1])",
-             str(tmp)], stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-            preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
-        try:
-            peak, reason = _watch(proc, timeout, mem_limit, t0)
-        finally:
-            if proc.poll() is None:  # an exception here (the task cancelled): never leave the mesh running
-                proc.kill()
-                proc.wait()
-    return proc.returncode, peak, reason
+    job = _start_job(tmp)
+    rc, peak, reason = None, 0, None
+    try:
+        ps = psutil.Process(job.pid)
+        while (rc := job.ended(POLL_S)) is None:
+            with contextlib.suppress(psutil.Error):
+                rss = ps.memory_info().rss
+                peak = max(peak, rss)
+                if mem_limit and rss > mem_limit:
+                    reason = f"exceeded the task memory limit ({mem_limit / 2**20:.0f} MiB)"
+            if timeout and time.perf_counter() - t0 > timeout:
+                reason = f"timed out after {timeout:g} s (--task-timeout)"
+            if reason:
+                os.kill(job.pid, signal.SIGKILL)
+                rc = job.ended(None)
+                break
+    finally:
+        if rc is None:  # an exception here (the task cancelled): never leave the mesh running
+            with contextlib.suppress(OSError):
+                os.kill(job.pid, signal.SIGKILL)
+            if isinstance(job, _Forked):  # its exit line was never read: this server is out of step
+                _SERVERS.pop(threading.get_ident(), None)
+                job.server.close()
+            else:
+                job.proc.wait()
+    return rc, peak, reason
 
 
 def _death_reason(tmp: Path, rc: int) -> str:
@@ -413,7 +451,7 @@ def run_job(spec: dict) -> dict:
     timeout, mem_limit = spec["task_timeout"], spec["task_memory"] or _task_memory_default()
     try:
         (tmp / "spec.json").write_text(json.dumps(spec))
-        rc, peak, reason = _run_subprocess(tmp, timeout, mem_limit, t0)
+        rc, peak, reason = _run_process(tmp, timeout, mem_limit, t0)
         seconds = time.perf_counter() - t0
         peak_mb = round(peak / 2**20, 1) if peak else None
         if reason:

@@ -1,0 +1,144 @@
+"""A warm job server for the batch: one long-lived process per Dask worker thread, with heatparam and its libraries
+imported, that forks one child process per mesh.
+
+Why: each mesh runs in a process of its own, so that it can be held to a time and a memory limit and a crash loses
+that mesh alone; but a fresh Python process pays about half a second of start and imports, more than the whole work
+of a small mesh. A fork of a process that has already imported everything costs milliseconds. The server only
+imports: it never computes, because a library's thread pool (OpenMP, MKL) is not safe to fork once started.
+
+Protocol (text lines over the server's stdin / stdout): the worker writes a job's folder; the server forks a
+child that runs the job on that folder with its output in ``folder/log.txt``, answers ``pid <pid>``, and when the
+child has ended ``exit <code>`` (a negative code: the signal that ended it). The server exits at the end of its
+stdin, or with the worker (``PR_SET_PDEATHSIG``), and its children with it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import importlib
+import os
+import select
+import signal
+import subprocess
+import sys
+import traceback
+from collections.abc import Callable
+
+#: Imported once by the server, so that no child imports them: the pipeline and the libraries it imports lazily.
+#: STEP's OpenCascade is left out (a large import that only STEP outputs need: those children import it).
+PRELOAD = ("heatparam.unwrap", "heatparam.pipeline", "heatparam.pipeline.atlas_stage", "heatparam.formats.exporters",
+           "heatparam.formats.dxf", "heatparam.formats.svg", "heatparam.formats.preview", "heatparam.formats.readers",
+           "heatparam.formats.outputs", "heatparam.refine", "heatparam.fill", "heatparam.heat", "scipy.sparse.linalg",
+           "scipy.spatial", "igl", "gpytoolbox", "cholespy", "pypardiso", "ezdxf", "matplotlib.pyplot",
+           "matplotlib.path", "meshio", "trimesh")
+
+
+def die_with_parent() -> None:  # pragma: no cover - runs in a child process
+    """Linux: this process gets SIGKILL when the thread that started it dies (elsewhere: nothing)."""
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(Exception):
+            ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG = 1
+
+
+def serve(job: Callable[[str], None]) -> None:  # pragma: no cover - the server process's main loop
+    """The server's loop (module docstring): preload, say ``ready``, then fork ``job(folder)`` for each line."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the children and the batch, not the server
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    for name in PRELOAD:
+        with contextlib.suppress(Exception):
+            importlib.import_module(name)
+    _say("ready")
+    while line := sys.stdin.readline():
+        pid = os.fork()
+        if pid == 0:
+            _child(job, line.rstrip("\n"))
+        _say(f"pid {pid}")
+        _, status = os.waitpid(pid, 0)
+        _say(f"exit {os.waitstatus_to_exitcode(status)}")
+
+
+def _say(line: str) -> None:  # pragma: no cover - server side
+    sys.stdout.write(line + "\n")
+    sys.stdout.flush()
+
+
+def _child(job: Callable[[str], None], folder: str) -> None:  # pragma: no cover - runs in the forked child
+    """Run ``job(folder)`` with stdin from /dev/null and stdout / stderr into ``folder/log.txt``; never returns."""
+    code = 1
+    try:
+        die_with_parent()
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        log = os.open(os.path.join(folder, "log.txt"), os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        os.dup2(os.open(os.devnull, os.O_RDONLY), 0)
+        os.dup2(log, 1)
+        os.dup2(log, 2)
+        job(folder)
+        code = 0
+    except BaseException:
+        traceback.print_exc()
+    finally:
+        with contextlib.suppress(Exception):
+            sys.stdout.flush()
+            sys.stderr.flush()
+        os._exit(code)
+
+
+class JobServer:
+    """The worker's side of one server: start it, hand it a job, learn when the job has ended.
+
+    Parameters
+    ----------
+    command : the server's command line (a Python process whose main loop is :func:`serve`).
+    """
+
+    def __init__(self, command: list[str]):
+        self.proc = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     stderr=subprocess.DEVNULL, preexec_fn=die_with_parent)
+        self._buffer = b""
+        if self._line(timeout=120) != "ready":
+            self.close()
+            raise OSError("the job server did not start")
+
+    def alive(self) -> bool:
+        return self.proc.poll() is None
+
+    def start(self, folder: str) -> int:
+        """Fork a job on ``folder``; returns its process id."""
+        self.proc.stdin.write(folder.encode() + b"\n")
+        self.proc.stdin.flush()
+        answer = self._line(timeout=60)
+        if not answer or not answer.startswith("pid "):
+            raise OSError("the job server stopped")
+        return int(answer.split()[1])
+
+    def ended(self, timeout: float | None) -> int | None:
+        """The running job's exit code once it has ended (waiting up to ``timeout`` seconds, None: until then);
+        None while it runs."""
+        answer = self._line(timeout)
+        if answer is None:
+            return None
+        if not answer.startswith("exit "):
+            raise OSError("the job server stopped")
+        return int(answer.split()[1])
+
+    def close(self) -> None:
+        with contextlib.suppress(Exception):
+            self.proc.stdin.close()
+        with contextlib.suppress(Exception):
+            self.proc.kill()
+            self.proc.wait(timeout=10)
+
+    def _line(self, timeout: float | None) -> str | None:
+        """The next line from the server: None when none came within ``timeout``, "" when the server is gone.
+        Read from the raw pipe (a buffered reader could hold a line that ``select`` then never reports)."""
+        fd = self.proc.stdout.fileno()
+        while b"\n" not in self._buffer:
+            if not select.select([fd], [], [], timeout)[0]:
+                return None
+            chunk = os.read(fd, 4096)
+            if not chunk:
+                return ""
+            self._buffer += chunk
+        line, self._buffer = self._buffer.split(b"\n", 1)
+        return line.decode()
