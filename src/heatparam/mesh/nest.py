@@ -111,27 +111,41 @@ def _raster(T, h, w):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _first_fit(nxt, run_r, run_a, run_b, h, w, margin):  # pragma: no cover - compiled
-    """Lowest, then leftmost (y, x) where no run (row offset r, columns a..b, relative to the raster's corner)
-    meets an occupied pixel, the raster (h,w) kept ``margin`` pixels inside the grid; (-1, -1) if none.
-    ``nxt`` (H, W+1): the first occupied column at or right of each pixel (W where none)."""
+def _first_fit(nxt, free, runs, rows, h, w, margin, slack, ylim):  # pragma: no cover - compiled
+    """Lowest (at most ``ylim``), then leftmost (y, x) where no run (``runs`` (k,3): row offset, first and last
+    column, relative to the raster's corner) meets an occupied pixel, the raster (h,w) kept ``margin`` pixels
+    inside the grid; (-1, -1) if none. ``nxt`` (H, W+1): the first occupied column at or right of each pixel (W
+    where none); ``free`` (H,): each row's longest free run, which must hold each raster row's longest run
+    (``rows`` (r,2): row offset, length) less ``slack`` (what the grid's edge may cut off)."""
     H, W = nxt.shape[0], nxt.shape[1] - 1
-    for y in range(margin, H - margin - h + 1):
+    n = runs.shape[0]
+    k0 = 0
+    for y in range(margin, min(H - margin - h, ylim) + 1):
+        room = True
+        for q in range(rows.shape[0]):  # a row without a long enough free run rules this y out at once
+            yy = y + rows[q, 0]
+            if 0 <= yy < H and free[yy] < rows[q, 1] - slack:
+                room = False
+                break
+        if not room:
+            continue
         x = margin
         while x <= W - margin - w:
             ok = True
-            for k in range(run_r.shape[0]):
-                yy = y + run_r[k]
+            for i in range(n):
+                k = (k0 + i) % n  # the run that failed last first: it most likely fails again
+                yy = y + runs[k, 0]
                 if yy < 0 or yy >= H:
                     continue
-                a = max(x + run_a[k], 0)
-                b = min(x + run_b[k], W - 1)
+                a = max(x + runs[k, 1], 0)
+                b = min(x + runs[k, 2], W - 1)
                 if a > b:
                     continue
                 c = nxt[yy, a]
                 if c <= b:  # occupied at c: every x that keeps c within this run fails too
                     ok = False
-                    x = max(x + 1, c - run_a[k] + 1)
+                    k0 = k
+                    x = max(x + 1, c - runs[k, 1] + 1)
                     break
             if ok:
                 return y, x
@@ -139,8 +153,8 @@ def _first_fit(nxt, run_r, run_a, run_b, h, w, margin):  # pragma: no cover - co
 
 
 @njit(cache=True)
-def _stamp(occ, nxt, raster, y, x):  # pragma: no cover - compiled
-    """Mark ``raster`` at (y, x) in ``occ`` and refresh ``nxt`` on its rows."""
+def _stamp(occ, nxt, free, raster, y, x):  # pragma: no cover - compiled
+    """Mark ``raster`` at (y, x) in ``occ`` and refresh ``nxt`` and ``free`` on its rows."""
     h, w = raster.shape
     W = occ.shape[1]
     for i in range(h):
@@ -149,28 +163,39 @@ def _stamp(occ, nxt, raster, y, x):  # pragma: no cover - compiled
                 occ[y + i, x + j] = 1
         row = y + i
         nxt[row, W] = W
+        longest = 0
         for c in range(W - 1, -1, -1):
             nxt[row, c] = c if occ[row, c] else nxt[row, c + 1]
+            longest = max(longest, nxt[row, c] - c)
+        free[row] = longest
 
 
-def _runs(mask: np.ndarray, off: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Horizontal runs of a (h,w) mask: (row, first column, last column) each, shifted by ``-off`` (int64)."""
+def _runs(mask: np.ndarray, off: int) -> tuple[np.ndarray, np.ndarray]:
+    """Horizontal runs of a (h,w) mask, shifted by ``-off``: (k,3) int64 (row, first column, last column) each,
+    and (r,2) int64 (row, longest run) per row with a run."""
     m = np.pad(mask.astype(np.int8), ((0, 0), (1, 1)))
     d = np.diff(m, axis=1)
     r0, a = np.nonzero(d == 1)
     _, b = np.nonzero(d == -1)  # the same rows in the same order (row-major)
-    return (r0 - off).astype(np.int64), (a - off).astype(np.int64), (b - 1 - off).astype(np.int64)
+    runs = np.column_stack([r0, a, b - 1]).astype(np.int64) - off
+    longest = np.zeros(mask.shape[0], dtype=np.int64)
+    np.maximum.at(longest, r0, b - a)
+    rows = np.flatnonzero(longest)
+    return runs, np.column_stack([rows - off, longest[rows]]).astype(np.int64)
 
 
 @dataclass
 class Shape:
     """One orientation of a piece at one pixel scale: rotation R (2,2), the rotated points' lower corner ``lo`` (2,)
-    (model units), the raster (h,w) uint8 and the runs of its dilation."""
+    (model units), the raster (h,w) uint8, the runs of its dilation by ``gap`` pixels and their longest per row
+    (:func:`_runs`)."""
 
     R: np.ndarray
     lo: np.ndarray
     raster: np.ndarray
-    runs: tuple[np.ndarray, np.ndarray, np.ndarray]
+    runs: np.ndarray
+    rows: np.ndarray
+    gap: int
 
 
 class Piece:
@@ -196,7 +221,7 @@ class Piece:
             if gap_px:  # a square of side 2 gap + 1: two separable running maxima
                 dil = ndimage.maximum_filter1d(ndimage.maximum_filter1d(dil, 2 * gap_px + 1, axis=0),
                                                2 * gap_px + 1, axis=1)
-            out.append(Shape(R, lo, ras, _runs(dil, gap_px)))
+            out.append(Shape(R, lo, ras, *_runs(dil, gap_px), gap_px))
         return out
 
 
@@ -207,21 +232,25 @@ class Grid:
     def __init__(self, H: int, W: int, margin: int = 0):
         self.occ = np.zeros((H, W), dtype=np.uint8)
         self.nxt = np.tile(np.full(W + 1, W, dtype=np.int64), (H, 1))
+        self.free = np.full(H, W, dtype=np.int64)
         self.margin = margin
         self.top = 0  # the highest row used + 1
 
     def best(self, shapes: list[Shape]) -> tuple[int, int, int] | None:
         """(orientation index, y, x) of the lowest, then leftmost placement over the orientations, or None."""
         best = None
+        H = self.occ.shape[0]
         for k, s in enumerate(shapes):
             h, w = s.raster.shape
-            y, x = _first_fit(self.nxt, *s.runs, h, w, self.margin)
+            ylim = H if best is None else best[2]  # a later orientation must be as low to win
+            y, x = _first_fit(self.nxt, self.free, s.runs, s.rows, h, w, self.margin,
+                              2 * max(0, s.gap - self.margin), ylim)
             if y >= 0 and (best is None or (y, x) < best[0]):
                 best = ((y, x), k, y, x)
         return None if best is None else best[1:]
 
     def place(self, shape: Shape, y: int, x: int) -> None:
-        _stamp(self.occ, self.nxt, shape.raster, y, x)
+        _stamp(self.occ, self.nxt, self.free, shape.raster, y, x)
         self.top = max(self.top, y + shape.raster.shape[0])
 
 
