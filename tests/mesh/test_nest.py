@@ -131,3 +131,20 @@ def _exit_code(argv: list[str]) -> int:
         return main(argv)
     except SystemExit as exc:
         return int(exc.code)
+
+
+def test_dilated_runs_are_the_square_dilation():
+    """Each shape's runs are the runs of its raster dilated by a (2 gap + 1)² square (scipy's dilation)."""
+    from scipy import ndimage
+
+    s = datasets.noisy_scan_part(scale=1.0, noise=0.0, h=0.1)
+    for gap in (0, 1, 3):
+        for shape in Piece(s.uv_true, s.F, orientations(s.uv_true, "free")).shapes(40.0, gap):
+            dil = ndimage.binary_dilation(np.pad(shape.raster, gap), np.ones((2 * gap + 1,) * 2, dtype=bool))
+            got = np.zeros_like(dil)
+            for r, a, b in shape.runs + gap:
+                got[r, a:b + 1] = True
+            assert np.array_equal(got, dil)
+            lengths = shape.runs[:, 2] - shape.runs[:, 1] + 1
+            for r, longest in shape.rows:
+                assert longest == lengths[shape.runs[:, 0] == r].max()

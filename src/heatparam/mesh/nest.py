@@ -20,7 +20,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
-from scipy import ndimage
 from scipy.spatial import ConvexHull, QhullError
 
 __all__ = ["Grid", "Piece", "Placement", "SheetNester", "min_area_rotation", "orientations"]
@@ -170,25 +169,46 @@ def _stamp(occ, nxt, free, raster, y, x):  # pragma: no cover - compiled
         free[row] = longest
 
 
-def _runs(mask: np.ndarray, off: int) -> tuple[np.ndarray, np.ndarray]:
-    """Horizontal runs of a (h,w) mask, shifted by ``-off``: (k,3) int64 (row, first column, last column) each,
-    and (r,2) int64 (row, longest run) per row with a run."""
-    m = np.pad(mask.astype(np.int8), ((0, 0), (1, 1)))
-    d = np.diff(m, axis=1)
-    r0, a = np.nonzero(d == 1)
-    _, b = np.nonzero(d == -1)  # the same rows in the same order (row-major)
-    runs = np.column_stack([r0, a, b - 1]).astype(np.int64) - off
-    longest = np.zeros(mask.shape[0], dtype=np.int64)
-    np.maximum.at(longest, r0, b - a)
-    rows = np.flatnonzero(longest)
-    return runs, np.column_stack([rows - off, longest[rows]]).astype(np.int64)
+@njit(cache=True)
+def _dilated_runs(ras, g):  # pragma: no cover - compiled
+    """The raster (h,w) dilated by a (2g+1)² square, as runs relative to the raster's corner: (k,3) int64 (row,
+    first column, last column) and (r,2) int64 (row, longest run) for each row with a run."""
+    h, w = ras.shape
+    H, W = h + 2 * g, w + 2 * g
+    cnt = np.zeros((H, W + 1), dtype=np.int32)  # per dilated row: prefix counts of the rows within g below/above
+    for i in range(h):
+        for j in range(w):
+            if ras[i, j]:
+                for di in range(2 * g + 1):
+                    cnt[i + di, j + 1] += 1
+    runs = np.empty((H * (w // 2 + 2), 3), dtype=np.int64)
+    rows = np.empty((H, 2), dtype=np.int64)
+    n = nr = 0
+    for i in range(H):
+        for j in range(W):
+            cnt[i, j + 1] += cnt[i, j]
+        longest = 0
+        j = 0
+        while j < W:  # column j of the dilation is set when a pixel of columns j-2g..j is set in the window
+            if cnt[i, min(j + 1, w)] - cnt[i, max(j - 2 * g, 0)] > 0:
+                start = j
+                while j < W and cnt[i, min(j + 1, w)] - cnt[i, max(j - 2 * g, 0)] > 0:
+                    j += 1
+                runs[n, 0], runs[n, 1], runs[n, 2] = i - g, start - g, j - 1 - g
+                n += 1
+                longest = max(longest, j - start)
+            j += 1
+        if longest:
+            rows[nr, 0], rows[nr, 1] = i - g, longest
+            nr += 1
+    return runs[:n].copy(), rows[:nr].copy()
 
 
 @dataclass
 class Shape:
     """One orientation of a piece at one pixel scale: rotation R (2,2), the rotated points' lower corner ``lo`` (2,)
     (model units), the raster (h,w) uint8, the runs of its dilation by ``gap`` pixels and their longest per row
-    (:func:`_runs`)."""
+    (:func:`_dilated_runs`)."""
 
     R: np.ndarray
     lo: np.ndarray
@@ -217,11 +237,7 @@ class Piece:
             Qp = (Q - lo) * scale
             h, w = int(math.floor(Qp[:, 1].max())) + 1, int(math.floor(Qp[:, 0].max())) + 1
             ras = _raster(np.ascontiguousarray(Qp[self.T]), h, w)
-            dil = np.pad(ras, gap_px)
-            if gap_px:  # a square of side 2 gap + 1: two separable running maxima
-                dil = ndimage.maximum_filter1d(ndimage.maximum_filter1d(dil, 2 * gap_px + 1, axis=0),
-                                               2 * gap_px + 1, axis=1)
-            out.append(Shape(R, lo, ras, *_runs(dil, gap_px), gap_px))
+            out.append(Shape(R, lo, ras, *_dilated_runs(ras, gap_px), gap_px))
         return out
 
 
