@@ -86,7 +86,7 @@ def test_runner_errors_are_one_line():
     s = datasets.cylinder_patch(h=0.2)
     with pytest.raises(runner.RunError, match=r"^--max-distortion must be 0 \(automatic\) or more than 1"):
         runner.Unwrap(HEATPARAM, ["--max-distortion", "0.5"], None).corner_uvs(s.V, s.F)
-    with pytest.raises(runner.RunError, match="not an executable file.*pipx install heatparam"):
+    with pytest.raises(runner.RunError, match="not an executable file.*pipx install"):
         runner.find_command("/nonexistent/heatparam")
     with pytest.raises(runner.RunError, match="cannot run"):
         runner.Unwrap(["/nonexistent/heatparam"], [], None).corner_uvs(s.V, s.F)

@@ -269,4 +269,4 @@ class HEATPARAM_AP_preferences(bpy.types.AddonPreferences):
 
     def draw(self, context):
         self.layout.prop(self, "command")
-        self.layout.label(text="Install it with: pipx install heatparam (or pip install heatparam)")
+        self.layout.label(text="Install it from heatparam's repository: pipx install . (or pip install .)")

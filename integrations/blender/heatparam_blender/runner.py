@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-INSTALL_HINT = ("install heatparam (pipx install heatparam, or pip install heatparam into any Python) or set the "
-                "path of the heatparam program in the extension's preferences")
+INSTALL_HINT = ("install heatparam (from its repository: pipx install . or pip install .) or set the path of "
+                "the heatparam program in the extension's preferences")
 
 
 class RunError(Exception):
