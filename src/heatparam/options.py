@@ -178,8 +178,9 @@ OPTIONS: tuple[Option, ...] = (
            group="refine"),
     Option("max_distortion", 0.0, "float", "atlas (any mesh that is not a single disk: closed, handles, several "
            "parts, non-manifold scans; docs/atlas.md): the bound on each chart's mean isometric distortion; 0 = "
-           "automatic: atlases are segmented to 1.05 and a disk that flattens bijectively stays one piece; a number "
-           "> 1 also segments a disk whose map exceeds it", low=0.0, high=100.0, flag="--max-distortion",
+           "automatic: a mesh that is one disk stays one piece with --pack scale, and every chart of an atlas, or "
+           "of a texture (--pack texture), is held to 1.05; a number > 1 is the bound for every chart, a disk's "
+           "too", low=0.0, high=100.0, flag="--max-distortion",
            metavar="X", short="chart distortion bound; 0 = automatic", group="atlas"),
     Option("max_charts", 0, "int", "atlas: a cap on the charts of each part (merging goes on past the bound while "
            "the merged charts stay bijective); 0 = no cap", low=0, high=10**6, flag="--max-charts", metavar="N",

@@ -73,12 +73,26 @@ def test_texture_packing_in_unit_square_with_gutter():
     assert 0 < res.report["totals"]["packing_efficiency"] <= 1
 
 
-def test_open_disk_stays_one_piece_by_default_and_splits_on_request():
+def test_open_disk_one_piece_as_a_pattern_bounded_in_an_atlas_and_a_texture():
+    """A nearly hemispherical open cap (no isometric flat map): one piece as a pattern (parameterize's default);
+    as a part of an atlas, beside a flat disk, and for a texture (pack='texture') its charts keep the 1.05 bound;
+    with max_distortion 1.03, that bound."""
     s = datasets.flat_disk(radius=1.0, h=0.1)
-    V = datasets.lift_sphere(s.V[:, :2], 1.05)  # a nearly hemispherical open cap: no isometric flat map
-    one = atlas(V, s.F)
-    assert one.report["totals"]["charts"] == 1
-    assert one.report["totals"]["iso_mean"] > 1.03
+    V = datasets.lift_sphere(s.V[:, :2], 1.05)
+    one = parameterize(V, s.F)
+    assert one.chart is None and one.report["metrics"]["iso_mean"] > 1.05
+    # two parts: the cap, and a flat disk beside it
+    V2, F2 = np.vstack([V, s.V + [3.0, 0.0, 0.0]]), np.vstack([s.F, s.F + len(V)])
+    two = parameterize(V2, F2)
+    _check_atlas(V2, F2, two, 1.05)
+    assert all(c["iso_mean"] <= 1.05 for c in two.report["method"]["atlas"]["charts"])
+    comps = two.report["method"]["atlas"]["components"]
+    assert comps[0]["segmented"] and comps[0]["charts"] > 1 and comps[1] == {"faces": len(s.F), "charts": 1,
+                                                                               "segmented": False}
+    texture = parameterize(V, s.F, pack="texture")
+    assert texture.report["method"]["atlas"]["totals"]["charts"] > 1 and not texture.report["warnings"]
+    assert all(c["iso_mean"] <= 1.05 for c in texture.report["method"]["atlas"]["charts"])
+    assert texture.uv.min() >= 0 and texture.uv.max() <= 1 and count_overlaps(texture.uv, texture.Fuv) == 0
     bounded = atlas(V, s.F, max_distortion=1.03)
     assert bounded.report["totals"]["charts"] > 1
     _check_atlas(V, s.F, bounded, 1.03)

@@ -77,6 +77,8 @@ def parameterize(V: np.ndarray, F: np.ndarray, options: Options | None = None, *
     prog = Progress(opts.progress)
     if opts.max_distortion:  # a bound asked for: segmented into charts that meet it (a disk too)
         return _atlas(V, F, opts, prog, "max_distortion was given")
+    if opts.pack == "texture":  # a texture wants low distortion more than one piece: a disk gets the bound too
+        return _atlas(V, F, opts, prog, "pack='texture' bounds every chart's distortion")
     try:
         return _disk(V, F, opts, prog)
     except TopologyError as exc:  # closed, handles, several parts, non-manifold: an atlas of disk charts

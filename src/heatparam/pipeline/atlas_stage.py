@@ -149,8 +149,8 @@ def atlas_result(V: np.ndarray, F: np.ndarray, opts: Options, *, why: str, flatt
     t = res.report["totals"]
     summary.update(charts=t["charts"], overlapping_triangle_pairs=t["overlapping_triangle_pairs"],
                    uv_degenerate_faces=t["uv_degenerate_faces"], seam_length=t["seam_length"])
-    # an atlas asked for (max_distortion) is no news; one the mesh forced is, with what to do for one piece
-    made = [] if opts.max_distortion else [
+    # an atlas asked for (a bound, texture packing) is no news; one the mesh forced is, with what to do for one piece
+    made = [] if opts.max_distortion or opts.pack == "texture" else [
         f"an atlas of {t['charts']} chart(s): the mesh is not one disk ({why}); the OBJ's vt rows split along the "
         "seams (for one piece, cut the mesh into a disk first)"]
     warnings = [*made, *res.report.get("warnings", [])]
@@ -214,7 +214,7 @@ class _ChartMaker:
 
     def whole(self, comp: Component, ci: int) -> Chart | None:
         """A component that is a single disk (not nearly closed), flattened whole by the pipeline, as one chart when
-        its map is bijective; None otherwise (it is segmented)."""
+        its map is bijective and within the bound; None otherwise (it is segmented like any other)."""
         try:
             validate_mesh(comp.V, comp.F, flatten=True)
             res = self.flatten_disk(comp.V, comp.F, self.opts)
@@ -222,7 +222,8 @@ class _ChartMaker:
             return None
         met = res.report["metrics"]
         Fuv = res.Fuv if res.Fuv is not None else comp.F
-        if not (met["bijective"] and not met["flips"]) or folded_zero_area(comp.V, comp.F, res.uv, Fuv):
+        kept = met["bijective"] and not met["flips"] and met["iso_mean"] <= self.bound
+        if not kept or folded_zero_area(comp.V, comp.F, res.uv, Fuv):
             return None
         return Chart(comp.faces, np.asarray(Fuv, dtype=np.int64), comp.vertex[res.uv_vertex], res.uv, ci,
                      {"iso_mean": float(met["iso_mean"]), "flips": int(met["flips"]), "bijective": True,
