@@ -58,3 +58,9 @@ def test_texels_per_unit_is_honoured_and_refused_when_too_large():
     assert np.concatenate(placed).max() <= 1
     with pytest.raises(HeatparamError, match="texels_per_unit=.* do not fit in one 256 x 256 texture"):
         pack_charts(uvs, Fs, "texture", 4, 256, texels_per_unit=best["texels_per_unit"] * 1.5)
+
+
+def test_too_many_charts_for_the_texture_are_refused_in_one_line():
+    uvs, Fs = _charts()
+    with pytest.raises(HeatparamError, match="do not fit in one 16 x 16 texture at any texel density"):
+        pack_charts(uvs * 4, Fs * 4, "texture", 4, 16)

@@ -146,6 +146,10 @@ class _TexturePack:
             placed = self.fit(lo)
             if placed is None:
                 hi, lo = lo, lo * 0.8
+                if lo * np.sqrt(self.areas.max(initial=0.0)) < 0.5:  # every chart under a texel: no density fits
+                    raise HeatparamError(f"the {len(self.pieces)} charts with a padding of {self.padding:g} pixels "
+                                         f"do not fit in one {self.R} x {self.R} texture at any texel density — "
+                                         "raise resolution or lower padding")
         while hi - lo > DENSITY_TOLERANCE * lo:
             mid = 0.5 * (lo + hi)
             trial = self.fit(mid)
