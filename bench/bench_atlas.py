@@ -1,5 +1,5 @@
-"""Atlases of closed, higher-genus and strongly curved meshes: heatparam's atlas stage vs xatlas vs libigl
-(cut_to_disk + Tutte + SLIM), in the same run, judged by the same independent checks: a markdown table.
+"""Atlases of closed, higher-genus and strongly curved meshes: heatparam's atlas stage vs xatlas vs uvunwrap vs
+libigl (cut_to_disk + Tutte + SLIM), in the same run, judged by the same independent checks: a markdown table.
 
 Usage: ``python bench/bench_atlas.py [--slim-iters N] [--repeat R] [name ...]`` (../shared/meshes files or the closed
 generated datasets closed_cube, capped_cylinder, cone_with_base, torus).
@@ -11,7 +11,8 @@ untimed warm-up call of every method on the generated torus: imports and the lib
 MKL's, are left out for all three, as xatlas's import always was; until 2026-12-03 heatparam's first mesh paid them;
 with ``--repeat R`` each method runs R times on each mesh, the least seconds reported, the rest from the first run).
 heatparam runs with defaults (true-scale packing), open meshes with ``max_distortion=1.05``; xatlas 0.0.11 with
-its default options; libigl: ``igl.cut_to_disk`` (a genus-0 closed mesh gets no cut from it: it is slit along
+its default options; uvunwrap (pip, Rust) with its defaults (``uvunwrap.generate``, 1024² page, shape packing);
+libigl: ``igl.cut_to_disk`` (a genus-0 closed mesh gets no cut from it: it is slit along
 the shortest path between two far vertices), ``igl.cut_mesh``, Tutte start, SLIM symmetric Dirichlet
 (``--slim-iters``, default 100). Flips are faces whose UV orientation disagrees with the atlas's majority: xatlas
 can mirror whole charts, which counts here (a mirrored texture on that chart).
@@ -81,6 +82,20 @@ def run_xatlas(V, F):
     return judge(V, F, uvs.astype(np.float64), idx, int(at.chart_count), s)
 
 
+def run_uvunwrap(V, F):
+    import uvunwrap
+
+    t = time.perf_counter()
+    at = uvunwrap.generate([uvunwrap.Mesh(np.ascontiguousarray(V, dtype=np.float32),
+                                          np.ascontiguousarray(F, dtype=np.uint32))])
+    s = time.perf_counter() - t
+    m = at.meshes[0]
+    uv = np.asarray(m.uv, dtype=np.float64).reshape(-1, 2)
+    idx = np.asarray(m.indices, dtype=np.int64).reshape(-1, 3)
+    Fu = np.asarray(m.xref, dtype=np.int64)[idx]
+    return judge(V, F if np.array_equal(Fu, F) else Fu, uv, idx, int(at.chart_count), s)
+
+
 def _far_path(V, F):
     """Shortest edge path between vertex 0's farthest vertex and that vertex's farthest one (a slit)."""
     import scipy.sparse as sp
@@ -142,12 +157,13 @@ def main(argv):
     names = argv or CLOSED + OPEN + GENERATED
     print(f"machine: {machine()}\n")
     Vw, Fw = load("torus")  # warm-up (module docstring), untimed
-    run_ours(Vw, Fw, "torus"), run_xatlas(Vw, Fw), run_igl(Vw, Fw, iters)
+    run_ours(Vw, Fw, "torus"), run_xatlas(Vw, Fw), run_uvunwrap(Vw, Fw), run_igl(Vw, Fw, iters)
     print("| mesh | method | charts | seam/√A | iso mean | iso p95 | flips | overlaps | collapsed | packing | s |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for name in names:
         V, F = load(name)
         for method, fn, args in (("heatparam", run_ours, (V, F, name)), ("xatlas", run_xatlas, (V, F)),
+                                 ("uvunwrap", run_uvunwrap, (V, F)),
                                  (f"libigl cut+SLIM{iters}", run_igl, (V, F, iters))):
             try:
                 print(fmt(name, method, best_of(fn, args, repeat)), flush=True)
