@@ -112,12 +112,12 @@ n = len(V)
 bnd = np.unique(E[~np.isin(E[:, 0] * n + E[:, 1], E[:, 1] * n + E[:, 0])])
 b0 = bnd[0]
 b1 = bnd[np.argmax(np.linalg.norm(V[bnd] - V[b0], axis=1))]
-t0 = time.perf_counter()
+t0, c0 = time.perf_counter(), time.process_time()
 uv = igl.lscm(V, F, np.array([b0, b1]), np.array([[0.0, 0.0], [1.0, 0.0]]))
-t1 = time.perf_counter()
+t1, c1 = time.perf_counter(), time.process_time()
 uv = np.asarray(uv[0] if isinstance(uv, tuple) else uv)
 s = metrics.summary(V, F, uv)
-out = {"seconds": t1 - t0, "faces": len(F), "iso": s["iso_mean"], "flips": s["flips"],
+out = {"seconds": t1 - t0, "cpu_s": c1 - c0, "faces": len(F), "iso": s["iso_mean"], "flips": s["flips"],
        "crossings": s["boundary_crossings"], "bijective": s["bijective"]}
 if s["flips"] == 0 and p["slim_iters"] > 0:
     uv0 = uv * s["uv_scale"]
@@ -192,8 +192,12 @@ def run_cli(mesh: Path, tmp: Path) -> dict:
     rep = json.loads((tmp / "r.json").read_text())
     m, method = rep["metrics"], rep.get("method", {})
     seams = method.get("seams", {})
-    return {"seconds": seconds, "peak_mb": int(rss.group(1)) / 1024 if rss else None, "iso": m["iso_mean"],
-            "flips": m["flips"], "crossings": m.get("boundary_crossings", 0), "stages": rep.get("timings_s", {}),
+    cpu = sum(float(x) for x in re.findall(r"(?:User|System) time \(seconds\): ([\d.]+)", r.stderr))
+    # each pass of a stage as the progress lines name it ("refine (map with seams): 33.96 s"): what a trial cost
+    passes = [[k, float(v)] for k, v in re.findall(r"^heatparam: ([^:]+): ([\d.]+) s$", r.stderr, re.M)]
+    return {"seconds": seconds, "cpu_s": cpu or None, "peak_mb": int(rss.group(1)) / 1024 if rss else None,
+            "iso": m["iso_mean"], "flips": m["flips"], "crossings": m.get("boundary_crossings", 0),
+            "stages": rep.get("timings_s", {}), "passes": passes, "seams_reason": seams.get("reason", ""),
             "seams": "used" if seams.get("used") else ("tried" if "iso_mean_with" in seams else "no")}
 
 
@@ -224,15 +228,24 @@ def family_summary(rows: list[dict]) -> str:
     iso mean against the best bijective peer."""
     ratios = np.array([r["ours"]["seconds"] / r["peer"]["seconds"] for r in rows])
     mem = np.array([r["ours"]["peak_mb"] or np.nan for r in rows])
-    deltas = [r["ours"]["iso"] / _best_peer(r["peer"])[1] - 1 for r in rows]
-    deltas = np.array([d for d in deltas if np.isfinite(d)])
+    best = [_best_peer(r["peer"])[1] for r in rows]
+    deltas = np.array([r["ours"]["iso"] / b - 1 for r, b in zip(rows, best, strict=True) if np.isfinite(b)])
     worst = rows[int(np.argmax(ratios))]["seed"]
     return (f"parts: {len(rows)}; ratio to LSCM median {np.median(ratios):.1f}×, worst {ratios.max():.1f}× (seed "
             f"{worst}); within 2×: {int((ratios <= 2).sum())}; peak RSS median {np.nanmedian(mem):.0f} MB, max "
             f"{np.nanmax(mem):.0f} MB; parts with flips {sum(r['ours']['flips'] > 0 for r in rows)}, with boundary "
             f"crossings {sum(r['ours']['crossings'] > 0 for r in rows)}; iso mean vs the best bijective peer: median "
             f"{100 * np.median(deltas) if len(deltas) else float('nan'):+.2f}%, worst "
-            f"{100 * deltas.max() if len(deltas) else float('nan'):+.2f}% ({len(deltas)} parts with a bijective peer)")
+            f"{100 * deltas.max() if len(deltas) else float('nan'):+.2f}% ({len(deltas)} parts with a bijective peer)"
+            + _cpu_ratios(rows))
+
+
+def _cpu_ratios(rows: list[dict]) -> str:
+    """CPU seconds (user + system) of heatparam's child over LSCM's solve, less sensitive than wall time to what
+    else the machine runs, where both were measured."""
+    c = np.array([r["ours"]["cpu_s"] / r["peer"]["cpu_s"] for r in rows
+                  if r["ours"].get("cpu_s") and r["peer"].get("cpu_s")])
+    return f"; CPU-time ratio median {np.median(c):.1f}×, worst {c.max():.1f}×" if len(c) else ""
 
 
 def run_family(spec: str, slim_iters: int, jsonl: str | None) -> None:
