@@ -11,7 +11,7 @@ import time
 import psutil
 import pytest
 
-from heatparam.job_server import JobServer
+from heatparam.job_server import JobServer, ServerPool
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "fork"), reason="the job server forks")
 
@@ -89,3 +89,21 @@ def test_server_ends_with_its_input():
     s = JobServer([sys.executable, "-c", JOB])
     s.proc.stdin.close()
     assert s.proc.wait(timeout=10) == 0
+
+
+def test_pool_keeps_servers_and_replaces_dead_ones(tmp_path):
+    pool = ServerPool([sys.executable, "-c", JOB])
+    pool.prestart()
+    first = pool.take()
+    first.start(str(_folder(tmp_path, "ok")))
+    assert first.ended(None) == 0
+    pool.give_back(first)
+    assert pool.take() is first  # kept warm for the next job
+    pool.give_back(first)
+    first.proc.kill()
+    first.proc.wait()
+    second = pool.take()  # a dead server is not handed out
+    assert second is not first
+    second.start(str(_folder(tmp_path, "ok")))
+    assert second.ended(None) == 0
+    second.close()

@@ -12,12 +12,13 @@ Design (and why):
   limit (``--task-memory``, on the process's resident memory; default: the Dask worker's ``memory_limit``): the
   task polls the process and kills it past either limit. A thread cannot be stopped from outside, a process can;
   it also gives each mesh its own peak-memory figure, and a crash (segfault, OOM kill) of one mesh takes down only
-  its process. The process is forked by a warm job server (``job_server``: one per worker thread, with heatparam
-  and its libraries already imported), so a small mesh costs milliseconds beyond its own work, not the half
-  second of a fresh interpreter; without ``fork`` it is a fresh subprocess. Both die with their worker
-  (``PR_SET_PDEATHSIG`` on Linux): killing a worker kills the meshes it was running, and Dask reruns them elsewhere. A worker that dies is
-  retried once (our ``LocalCluster`` sets ``distributed.scheduler.allowed-failures`` to 1; an external scheduler
-  uses its own setting, default 3), then the mesh is recorded as failed.
+  its process. The process is forked by a warm job server (``job_server``: kept by each worker, with heatparam and
+  its libraries already imported, started while the batch is set up), so a small mesh costs milliseconds beyond
+  its own work, not the half second of a fresh interpreter; without ``fork`` it is a fresh subprocess. Both die
+  with their worker (``PR_SET_PDEATHSIG`` on Linux): killing a worker kills the meshes it was running, and Dask
+  reruns them elsewhere. A worker that dies is retried once (our ``LocalCluster`` sets
+  ``distributed.scheduler.allowed-failures`` to 1; an external scheduler uses its own setting, default 3), then
+  the mesh is recorded as failed.
 - **Never a partial file**: the subprocess writes into a hidden folder ``.heatparam-tmp-*`` beside the outputs;
   only when it succeeded are the files renamed into place, the report JSON last. Leftover temporary folders (a
   killed worker, Ctrl-C) are removed at the start and at the end of every batch.
@@ -46,13 +47,12 @@ import shutil
 import signal
 import subprocess
 import sys
-import threading
 import time
 import uuid
 from pathlib import Path, PurePosixPath
 
 from heatparam.errors import HeatparamError, ResourceError
-from heatparam.job_server import JobServer, die_with_parent
+from heatparam.job_server import JobServer, ServerPool, die_with_parent
 from heatparam.options import Options, make_options
 from heatparam.version import __version__
 
@@ -351,23 +351,30 @@ class _Forked:
         return self.server.ended(timeout)
 
 
-#: One warm job server per worker thread, started by its first job.
-_SERVERS: dict[int, JobServer] = {}
-_SERVER_COMMAND = [sys.executable, "-c", "from heatparam.batching import _job_main; "
-                   "from heatparam.job_server import serve; serve(_job_main)"]
+#: This worker process's warm job servers (``job_server``), started by a worker's setup or by the first job.
+_SERVERS = ServerPool([sys.executable, "-c", "from heatparam.batching import _job_main; "
+                       "from heatparam.job_server import serve; serve(_job_main)"])
+
+
+def dask_setup(worker) -> None:
+    """Dask's preload hook (our LocalCluster preloads this module): a job server starts importing while the batch
+    is set up, so the first mesh does not wait for it."""
+    if hasattr(os, "fork"):
+        with contextlib.suppress(OSError):
+            _SERVERS.prestart()
 
 
 def _start_job(tmp: Path) -> _Child | _Forked:
-    """The job on ``tmp``, forked by this thread's job server where there is one, else a fresh subprocess."""
+    """The job on ``tmp``, forked by a warm job server where there is one, else a fresh subprocess."""
     if not hasattr(os, "fork"):
         return _Child(tmp)
-    key = threading.get_ident()
+    server = None
     try:
-        if key not in _SERVERS or not _SERVERS[key].alive():
-            _SERVERS[key] = JobServer(_SERVER_COMMAND)
-        return _Forked(_SERVERS[key], tmp)
+        server = _SERVERS.take()
+        return _Forked(server, tmp)
     except OSError:
-        _SERVERS.pop(key, None)
+        if server is not None:
+            server.close()
         return _Child(tmp)
 
 
@@ -398,10 +405,11 @@ def _run_process(tmp: Path, timeout: float | None, mem_limit: int | None, t0: fl
             with contextlib.suppress(OSError):
                 os.kill(job.pid, signal.SIGKILL)
             if isinstance(job, _Forked):  # its exit line was never read: this server is out of step
-                _SERVERS.pop(threading.get_ident(), None)
                 job.server.close()
             else:
                 job.proc.wait()
+        elif isinstance(job, _Forked):
+            _SERVERS.give_back(job.server)
     return rc, peak, reason
 
 
@@ -524,7 +532,7 @@ def _client(client, scheduler: str | None, workers: int | None):
     dashboard = ":0"  # a free port (the scheduler always serves HTTP; the dashboard needs bokeh)
     with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=dashboard,
-                               silence_logs=50)
+                               silence_logs=50, preload=["heatparam.batching"])  # dask_setup: warm job servers
     try:
         c = Client(cluster)
         try:

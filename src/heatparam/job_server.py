@@ -22,6 +22,7 @@ import select
 import signal
 import subprocess
 import sys
+import threading
 import traceback
 from collections.abc import Callable
 
@@ -84,27 +85,64 @@ def _child(job: Callable[[str], None], folder: str) -> None:  # pragma: no cover
         os._exit(code)
 
 
+class ServerPool:
+    """The warm job servers of one worker process: one per job running at the same time (per worker thread),
+    each handed back after its job and kept for the next.
+
+    Parameters
+    ----------
+    command : the servers' command line (:class:`JobServer`).
+    """
+
+    def __init__(self, command: list[str]):
+        self.command = command
+        self._idle: list[JobServer] = []
+        self._lock = threading.Lock()
+
+    def prestart(self) -> None:
+        """Start a server now (it imports while the batch is set up), for the first job to take."""
+        with self._lock:
+            self._idle.append(JobServer(self.command))
+
+    def take(self) -> JobServer:
+        """An idle server that is still alive, or a new one."""
+        with self._lock:
+            while self._idle:
+                server = self._idle.pop()
+                if server.alive():
+                    return server
+        return JobServer(self.command)
+
+    def give_back(self, server: JobServer) -> None:
+        with self._lock:
+            self._idle.append(server)
+
+
 class JobServer:
     """The worker's side of one server: start it, hand it a job, learn when the job has ended.
 
     Parameters
     ----------
-    command : the server's command line (a Python process whose main loop is :func:`serve`).
+    command : the server's command line (a Python process whose main loop is :func:`serve`). The server starts
+        importing at once; the first job waits until it is ready.
     """
 
     def __init__(self, command: list[str]):
         self.proc = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                      stderr=subprocess.DEVNULL, preexec_fn=die_with_parent)
         self._buffer = b""
-        if self._line(timeout=120) != "ready":
-            self.close()
-            raise OSError("the job server did not start")
+        self._ready = False
 
     def alive(self) -> bool:
         return self.proc.poll() is None
 
     def start(self, folder: str) -> int:
         """Fork a job on ``folder``; returns its process id."""
+        if not self._ready:
+            if self._line(timeout=120) != "ready":
+                self.close()
+                raise OSError("the job server did not start")
+            self._ready = True
         self.proc.stdin.write(folder.encode() + b"\n")
         self.proc.stdin.flush()
         answer = self._line(timeout=60)
