@@ -44,3 +44,21 @@ def test_readme_holds_no_stale_option_table():
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     if "| option | meaning | default |\n|---|---|---|\n| [`--" in readme or "| `--fill " in readme:
         assert markdown_table() in readme
+
+
+def test_readme_and_benchmarks_stay_short_and_current():
+    """A newcomer's documents (issue 41): the README ≤ 160 lines with the two set-up commands as CI runs the second,
+    BENCHMARKS.md ≤ 400 lines of current results; no development-log wording in either."""
+    import re
+
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    bench = (ROOT / "BENCHMARKS.md").read_text(encoding="utf-8")
+    assert len(readme.splitlines()) <= 160
+    assert len(bench.splitlines()) <= 400
+    assert "python3 -m pip install . && heatparam demo" in readme
+    ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8")
+    command = 'python3 -m pip install ".[test]" && python3 -m pytest -q'
+    assert command in readme and command in ci
+    for text in (readme, bench):
+        assert not re.search(r"\b(stop|round) \d+\b", text, re.IGNORECASE)
+    assert "§" not in readme
