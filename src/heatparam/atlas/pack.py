@@ -3,8 +3,9 @@
 ``scale``: true scale (model units), each chart turned to its minimum-area bounding rectangle, shelf packing of the
 boxes with a gap of ``gap`` model units between them.
 ``texture``: the charts nested by their rasters in a ``resolution``² texture (``mesh.nest``: rotations by quarter
-turns of their own and of their minimum-area rectangle's frame, bottom-left fill, largest first), every chart at one
-texel density: the largest that fits (bisection), or ``texels_per_unit`` when given. Two charts are at least
+turns of their own and of their minimum-area rectangle's frame, bottom-left fill, largest first, by either of two
+placement rules), every chart at one texel density: the largest that fits (bisection), or ``texels_per_unit`` when
+given. Two charts are at least
 ``padding`` pixels apart (their conservative rasters, one dilated by the padding, never meet) and every chart at
 least half of it from the border; UVs in [0,1]².
 """
@@ -105,18 +106,22 @@ class _TexturePack:
         self.padding = padding
 
     def fit(self, density: float) -> list | None:
-        """Each chart's (shape, y, x) at ``density`` pixels per unit, or None when they do not all fit."""
-        grid = Grid(self.R, self.R, self.margin)
-        placed: list = [None] * len(self.pieces)
-        for i in self.order:
-            shapes = self.pieces[i].shapes(density, self.gap_px)
-            where = grid.best(shapes)
-            if where is None:
-                return None
-            k, y, x = where
-            grid.place(shapes[k], y, x)
-            placed[i] = (shapes[k], y, x)
-        return placed
+        """Each chart's (shape, y, x) at ``density`` pixels per unit, or None when they do not all fit by either
+        placement rule (lowest position, or lowest top: ``mesh.nest.Grid.best``)."""
+        shapes = [self.pieces[i].shapes(density, self.gap_px) for i in range(len(self.pieces))]
+        for top in (False, True):
+            grid = Grid(self.R, self.R, self.margin)
+            placed: list = [None] * len(self.pieces)
+            for i in self.order:
+                where = grid.best(shapes[i], top)
+                if where is None:
+                    break
+                k, y, x = where
+                grid.place(shapes[i][k], y, x)
+                placed[i] = (shapes[i][k], y, x)
+            else:
+                return placed
+        return None
 
     def packed(self, texels_per_unit: float | None) -> tuple[list[np.ndarray], dict]:
         """The placed layouts (UVs in [0,1]²) and the packing's report entry."""

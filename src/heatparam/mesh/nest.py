@@ -252,17 +252,18 @@ class Grid:
         self.margin = margin
         self.top = 0  # the highest row used + 1
 
-    def best(self, shapes: list[Shape]) -> tuple[int, int, int] | None:
-        """(orientation index, y, x) of the lowest, then leftmost placement over the orientations, or None."""
+    def best(self, shapes: list[Shape], top: bool = False) -> tuple[int, int, int] | None:
+        """(orientation index, y, x) of the lowest, then leftmost placement over the orientations (``top``: the
+        one whose top ends lowest), or None."""
         best = None
         H = self.occ.shape[0]
         for k, s in enumerate(shapes):
             h, w = s.raster.shape
-            ylim = H if best is None else best[2]  # a later orientation must be as low to win
+            ylim = H if best is None else best[0][0] - (h if top else 0)  # a later one must be as low to win
             y, x = _first_fit(self.nxt, self.free, s.runs, s.rows, h, w, self.margin,
                               2 * max(0, s.gap - self.margin), ylim)
-            if y >= 0 and (best is None or (y, x) < best[0]):
-                best = ((y, x), k, y, x)
+            if y >= 0 and (best is None or (y + h * top, x) < best[0]):
+                best = ((y + h * top, x), k, y, x)
         return None if best is None else best[1:]
 
     def place(self, shape: Shape, y: int, x: int) -> None:
@@ -273,8 +274,8 @@ class Grid:
 #: Sheets are rasterized with this many pixels along their longer side: the quantization costs about one pixel
 #: along each outline (a fraction of a percent of a sheet of a few dozen pieces).
 SHEET_PIXELS = 1024
-#: Orderings tried within the time budget: by area, by longer side, by perimeter of the box, then shuffles of the
-#: area order (seeded).
+#: Orderings tried within the time budget: by area, by longer side, by perimeter of the box (each with both
+#: placement rules), then shuffles of the area order (seeded).
 NEST_TRIES = 12
 
 
@@ -307,8 +308,9 @@ class SheetNester:
         return [i for i, sh in enumerate(self.shapes)
                 if not any(s.raster.shape[0] <= inner_h and s.raster.shape[1] <= inner_w for s in sh)]
 
-    def run(self, order: np.ndarray) -> tuple[list[Placement], list[Grid]] | None:
-        """The pieces placed in ``order``; None when one fits on no empty sheet."""
+    def run(self, order: np.ndarray, top: bool = False) -> tuple[list[Placement], list[Grid]] | None:
+        """The pieces placed in ``order`` (``top``: :meth:`Grid.best`'s rule); None when one fits on no empty
+        sheet."""
         grids: list[Grid] = []
         out: list = [None] * len(self.shapes)
         for i in order:
@@ -317,7 +319,7 @@ class SheetNester:
                 if grid is None:
                     grid = Grid(self.gh, self.gw, self.gap_px)
                     grids.append(grid)
-                where = grid.best(shapes)
+                where = grid.best(shapes, top)
                 if where is not None:
                     k, y, x = where
                     grid.place(shapes[k], y, x)
@@ -329,10 +331,11 @@ class SheetNester:
         return out, grids
 
     def orders(self, seed: int) -> list[np.ndarray]:
-        """The orderings to try, in turn (``NEST_TRIES`` in all)."""
+        """The orderings to try, in turn (``NEST_TRIES`` in all); :meth:`nested` runs every other one with the
+        lowest-top rule (:meth:`Grid.best`)."""
         box = np.array([[s.raster.shape[0], s.raster.shape[1]] for s in (sh[0] for sh in self.shapes)], dtype=float)
         keys = [-self.areas, -box.max(axis=1), -box.sum(axis=1)]
-        out = [np.lexsort((np.arange(len(k)), k)) for k in keys]
+        out = [o for k in keys for o in [np.lexsort((np.arange(len(k)), k))] * 2]  # each with both rules
         rng = np.random.default_rng(seed)
         while len(out) < NEST_TRIES:
             jitter = self.areas * rng.uniform(0.7, 1.3, len(self.areas))
@@ -349,11 +352,11 @@ class SheetNester:
         rule (one sheet, or every ordering tried) before the time is up."""
         t0 = time.perf_counter()
         best, tries, timed_out = None, 0, False
-        for order in self.orders(seed):
+        for n, order in enumerate(self.orders(seed)):
             if best is not None and time.perf_counter() - t0 > seconds:
                 timed_out = True
                 break
-            got = self.run(order)
+            got = self.run(order, top=bool(n % 2))
             tries += 1
             if got is not None and (best is None or self.score(got[1]) < self.score(best[1])):
                 best = got
