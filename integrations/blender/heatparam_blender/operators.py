@@ -54,6 +54,9 @@ class Status:
     def line(self, text: str) -> None:
         if self.workspace is not None:
             self.workspace.status_text_set(f"{self.prefix}: {text}")
+            if not bpy.app.background and bpy.context.window is not None:
+                # the operator blocks Blender's event loop: redraw now, or the status bar shows only the last line
+                bpy.ops.wm.redraw_timer(type="DRAW_WIN_SWAP", iterations=1)
 
     def end(self) -> None:
         self.wm.progress_end()
