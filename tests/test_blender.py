@@ -234,6 +234,7 @@ def test_unwrap_acceptance(bl, scene, tmp_path, name):
         obj = _cad_part(bl)
     else:
         obj = _import(bl, tmp_path, *load_mesh(MESHES / name))
+        assert not obj.data.uv_layers  # the operator creates the UV map
     assert bl.ops.uv.heatparam_unwrap(pack="texture", max_distortion=1.05) == {"FINISHED"}
     r = _judge(obj)
     assert (r["flips"], r["overlaps"], r["collapsed"]) == (0, 0, 0), r
