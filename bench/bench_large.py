@@ -198,7 +198,19 @@ def run_cli(mesh: Path, tmp: Path) -> dict:
     return {"seconds": seconds, "cpu_s": cpu or None, "peak_mb": int(rss.group(1)) / 1024 if rss else None,
             "iso": m["iso_mean"], "flips": m["flips"], "crossings": m.get("boundary_crossings", 0),
             "stages": rep.get("timings_s", {}), "passes": passes, "seams_reason": seams.get("reason", ""),
-            "seams": "used" if seams.get("used") else ("tried" if "iso_mean_with" in seams else "no")}
+            "seams": "used" if seams.get("used") else ("tried" if "iso_mean_with" in seams else "no"),
+            **_seam_levels(method)}
+
+
+def _seam_levels(method: dict) -> dict:
+    """The seams decision's inputs at both levels, where the report has them: fine iso means without / with seams,
+    and the coarse levels' iso means of the kept map and (seams used) of the map without seams — whether a coarse
+    comparison would have decided as the fine one did (issue 42's item 2)."""
+    seams = method.get("seams", {})
+    coarse = method.get("refine", {}).get("multilevel", {}).get("coarse_iso_mean")
+    without = method.get("without_seams", {}).get("refine", {}).get("multilevel", {}).get("coarse_iso_mean")
+    return {"iso_without": seams.get("iso_mean_without"), "iso_with": seams.get("iso_mean_with"),
+            "coarse_iso_kept": coarse, "coarse_iso_without": without}
 
 
 def _best_peer(peer: dict) -> tuple[str, float]:
