@@ -110,16 +110,16 @@ def _raster(T, h, w):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _first_fit(nxt, free, runs, rows, h, w, margin, slack, ylim):  # pragma: no cover - compiled
-    """Lowest (at most ``ylim``), then leftmost (y, x) where no run (``runs`` (k,3): row offset, first and last
-    column, relative to the raster's corner) meets an occupied pixel, the raster (h,w) kept ``margin`` pixels
-    inside the grid; (-1, -1) if none. ``nxt`` (H, W+1): the first occupied column at or right of each pixel (W
-    where none); ``free`` (H,): each row's longest free run, which must hold each raster row's longest run
-    (``rows`` (r,2): row offset, length) less ``slack`` (what the grid's edge may cut off)."""
+def _first_fit(nxt, free, runs, rows, h, w, margin, slack, ylim, y0, x0):  # pragma: no cover - compiled
+    """Lowest (at most ``ylim``; from row ``y0``, column ``x0`` on), then leftmost (y, x) where no run (``runs``
+    (k,3): row offset, first and last column, relative to the raster's corner) meets an occupied pixel, the raster
+    (h,w) kept ``margin`` pixels inside the grid; (-1, -1) if none. ``nxt`` (H, W+1): the first occupied column at
+    or right of each pixel (W where none); ``free`` (H,): each row's longest free run, which must hold each raster
+    row's longest run (``rows`` (r,2): row offset, length) less ``slack`` (what the grid's edge may cut off)."""
     H, W = nxt.shape[0], nxt.shape[1] - 1
     n = runs.shape[0]
     k0 = 0
-    for y in range(margin, min(H - margin - h, ylim) + 1):
+    for y in range(max(margin, y0), min(H - margin - h, ylim) + 1):
         room = True
         for q in range(rows.shape[0]):  # a row without a long enough free run rules this y out at once
             yy = y + rows[q, 0]
@@ -128,7 +128,7 @@ def _first_fit(nxt, free, runs, rows, h, w, margin, slack, ylim):  # pragma: no 
                 break
         if not room:
             continue
-        x = margin
+        x = max(margin, x0) if y == y0 else margin
         while x <= W - margin - w:
             ok = True
             for i in range(n):
@@ -230,14 +230,17 @@ class Piece:
 
     def shapes(self, scale: float, gap_px: int) -> list[Shape]:
         """Each orientation's raster at ``scale`` pixels per unit, dilated by ``gap_px`` pixels for the scan."""
-        out = []
+        out, seen = [], set()
         for R in self.rotations:
             Q = self.P @ R.T
             lo = Q.min(axis=0)
             Qp = (Q - lo) * scale
             h, w = int(math.floor(Qp[:, 1].max())) + 1, int(math.floor(Qp[:, 0].max())) + 1
             ras = _raster(np.ascontiguousarray(Qp[self.T]), h, w)
-            out.append(Shape(R, lo, ras, *_dilated_runs(ras, gap_px), gap_px))
+            key = (h, w, ras.tobytes())
+            if key not in seen:  # an orientation with the raster of an earlier one places the same (small pieces)
+                seen.add(key)
+                out.append(Shape(R, lo, ras, *_dilated_runs(ras, gap_px), gap_px))
         return out
 
 
@@ -249,6 +252,7 @@ class Grid:
         self.occ = np.zeros((H, W), dtype=np.uint8)
         self.nxt = np.tile(np.full(W + 1, W, dtype=np.int64), (H, 1))
         self.free = np.full(H, W, dtype=np.int64)
+        self.since: dict = {}  # raster → the first (y, x) where it may still fit (:meth:`best`)
         self.margin = margin
         self.top = 0  # the highest row used + 1
 
@@ -260,8 +264,12 @@ class Grid:
         for k, s in enumerate(shapes):
             h, w = s.raster.shape
             ylim = H if best is None else best[0][0] - (h if top else 0)  # a later one must be as low to win
+            key = (s.gap, h, w, s.raster.tobytes())
+            # the grid only fills up: a raster that fit nowhere before (y0, x0) still does not
+            y0, x0 = self.since.get(key, (0, 0))
             y, x = _first_fit(self.nxt, self.free, s.runs, s.rows, h, w, self.margin,
-                              2 * max(0, s.gap - self.margin), ylim)
+                              2 * max(0, s.gap - self.margin), ylim, y0, x0)
+            self.since[key] = (y, x) if y >= 0 else (max(y0, ylim + 1), 0)
             if y >= 0 and (best is None or (y + h * top, x) < best[0]):
                 best = ((y + h * top, x), k, y, x)
         return None if best is None else best[1:]
