@@ -7,7 +7,7 @@ import numpy as np
 
 from heatparam import datasets
 from heatparam.atlas.chart_topology import Topology, chart_mesh
-from heatparam.atlas.flatten import flatten_charts, lscm, quick_flatten, segment_layout
+from heatparam.atlas.flatten import flatten_charts, lscm, quick_flatten, segment_layout, triangle_layout
 from heatparam.atlas.segment import segment
 
 from hostile import split_edge
@@ -125,3 +125,19 @@ def test_segment_layout_keeps_every_length():
     assert (uv[:, 1] == 0).all() and (uv[4] == 0).all()  # on one line; the unused row at 0
     bent = np.array([[0.0, 0, 0], [0, 0, 0], [1, 0, 0], [0, 1, 0]])  # two point-like faces, not on one line
     assert segment_layout(bent, np.array([[0, 1, 2], [1, 0, 3]])) is None
+
+
+def test_triangle_layout_keeps_a_slivers_lengths_and_area():
+    """A sliver (area 6e-10 of its longest edge squared, pybullet's diff_carrier_cover.stl) has no finite LSCM
+    layout; laid out exactly it keeps its three lengths and its area, counter-clockwise."""
+    V = np.array([[5.0, -17.42691993713379, 10.418510437011719], [5.0, -17.42691993713379, 10.418511390686035],
+                  [5.0, -17.42691993713379, 10.418512344360352]])
+    V[:, 0] = [14.000001907348633, 0.7090072631835938, -13.022712707519531]
+    F = np.array([[0, 1, 2]])
+    assert quick_flatten(V, F)[0] is None
+    uv = triangle_layout(V, F)
+    for i, j in ((0, 1), (1, 2), (2, 0)):
+        assert np.isclose(np.linalg.norm(uv[i] - uv[j]), np.linalg.norm(V[i] - V[j]), rtol=1e-12)
+    a3 = 0.5 * np.linalg.norm(np.cross(V[1] - V[0], V[2] - V[0]))
+    e1, e2 = uv[1] - uv[0], uv[2] - uv[0]
+    assert np.isclose(0.5 * (e1[0] * e2[1] - e1[1] * e2[0]), a3, rtol=1e-9)

@@ -281,6 +281,8 @@ def test_chart_failure_message_says_why_and_what_to_do(monkeypatch):
 
     monkeypatch.setattr(atlas_stage, "quick_flatten", lambda Vl, Fl: (None, float("inf"), False))
     monkeypatch.setattr(atlas_stage, "halves", lambda *a: [])
+    # a single face always has its exact layout now: make that fail too, so the message path is reached
+    monkeypatch.setattr(atlas_stage._ChartMaker, "_flatten", lambda self, Vl, Fl: (None, {"error": "no map"}))
     V, F = datasets.closed_cube(n=2)
     with pytest.raises(HeatparamError) as exc:
         atlas_stage.atlas(V, F, refuse, mds_start="always")

@@ -22,7 +22,7 @@ from heatparam.metrics import crossing_pairs, true_scale_iso
 from heatparam.refine.energy import surface_gradients
 
 __all__ = ["Flattenings", "chart_iso", "crossings_per_chart", "flatten_charts", "flatten_components", "lscm",
-           "quick_flatten", "segment_layout"]
+           "quick_flatten", "segment_layout", "triangle_layout"]
 
 
 def chart_iso(V: np.ndarray, F: np.ndarray, uv: np.ndarray, fgroup: np.ndarray, k: int
@@ -248,6 +248,23 @@ def quick_flatten(Vl: np.ndarray, Fl: np.ndarray) -> tuple[np.ndarray | None, fl
     if not np.isfinite(iso[0]):
         return None, float("inf"), False
     return uv, float(iso[0]), bool(disk[0] and flips[0] == 0 and cross[0] == 0)
+
+
+def triangle_layout(Vl: np.ndarray, Fl: np.ndarray) -> np.ndarray:
+    """A chart of one face laid out exactly: (n,2), its longest edge on +x from the origin, the third corner above
+    it at the height 2·area / that edge (counter-clockwise), rows no face uses at 0. Lengths and area are the 3D
+    ones to rounding, also for a sliver whose LSCM solve has no finite layout."""
+    f = Fl[0]
+    E = Vl[np.roll(f, -1)] - Vl[f]  # edge k runs from corner k to corner k + 1
+    k = int(np.argmax(np.einsum("ij,ij->i", E, E)))
+    a, b, c = f[k], f[(k + 1) % 3], f[(k + 2) % 3]
+    e1, e2 = Vl[b] - Vl[a], Vl[c] - Vl[a]
+    base = float(np.linalg.norm(e1))
+    uv = np.zeros((len(Vl), 2))
+    if base > 0.0:
+        uv[b] = [base, 0.0]
+        uv[c] = [float(e1 @ e2) / base, float(np.linalg.norm(np.cross(e1, e2))) / base]
+    return uv
 
 
 def segment_layout(Vl: np.ndarray, Fl: np.ndarray) -> np.ndarray | None:

@@ -30,7 +30,7 @@ import numpy as np
 from heatparam import metrics
 from heatparam.atlas.chart_seams import chart_seam_lengths, cut_half_edges, seam_length
 from heatparam.atlas.chart_topology import Topology, chart_mesh
-from heatparam.atlas.flatten import quick_flatten, segment_layout
+from heatparam.atlas.flatten import quick_flatten, segment_layout, triangle_layout
 from heatparam.atlas.grow import halves
 from heatparam.atlas.overlap import count_overlaps, folded_zero_area, uv_degenerate_faces
 from heatparam.atlas.pack import pack_charts
@@ -286,12 +286,9 @@ class _ChartMaker:
                 return None, {"error": "its zero-area faces do not lie on one line"}
             return uv, {"iso_mean": 1.0, "flips": 0, "bijective": True, "boundary_crossings": 0,
                         "method": "segment (zero-area faces)"}
-        if len(Fl) < 2:
-            uv, iso, bij = quick_flatten(Vl, Fl)
-            if uv is None:
-                return None, {"error": "its triangle has no finite layout"}
-            return uv, {"iso_mean": iso, "flips": 0 if bij else 1, "bijective": bij, "boundary_crossings": 0,
-                        "method": "exact triangle"}
+        if len(Fl) < 2:  # (LSCM has no finite layout for a sliver)
+            return triangle_layout(Vl, Fl), {"iso_mean": 1.0, "flips": 0, "bijective": True,
+                                              "boundary_crossings": 0, "method": "exact triangle"}
         try:
             res = self.flatten_disk(Vl, Fl, self.opts)
         except HeatparamError as exc:
