@@ -59,3 +59,22 @@ def test_seam_lengths_carry_the_unit(tmp_path):
     seams = [w for w in r.report["warnings"] if w.startswith("the map has seams")]
     assert len(seams) == 1 and " cm long in all" in seams[0]
     assert not r.report["units_assumed"] and not any("no --units" in w for w in r.report["warnings"])
+
+
+def test_faces_repeating_a_vertex_are_left_out_with_a_warning(tmp_path):
+    """A face that repeats a vertex index is a segment or a point (an STL triangle whose corners merged, as in
+    pybullet's l_finger_collision.stl; OpenMesh's cube-minimal-degenerated.obj): the file's surface flattens, the
+    warning says how many were left out, the outputs hold the other faces. A file of nothing else is refused."""
+    from heatparam.errors import HeatparamError
+    from heatparam.formats import load_uv_obj
+
+    s = datasets.flat_square(h=0.25)
+    F = np.vstack([s.F, [[0, 0, 1], [2, 3, 3]]])
+    write_off(tmp_path / "p.off", s.V, F)
+    r = unwrap_file(tmp_path / "p.off", tmp_path / "p.obj", units="mm")
+    assert r.report["warnings"][0].startswith("2 faces repeat a vertex index"), r.report["warnings"]
+    V2, F2, UV, _ = load_uv_obj(tmp_path / "p.obj")
+    assert np.array_equal(F2, s.F) and np.isfinite(UV).all()
+    write_off(tmp_path / "q.off", s.V, np.array([[0, 0, 1], [2, 3, 3]]))
+    with pytest.raises(HeatparamError, match="repeat a vertex index"):
+        unwrap_file(tmp_path / "q.off", tmp_path / "q.obj", units="mm")

@@ -8,6 +8,7 @@ before the computation, every output goes to a temporary, and all are renamed in
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 
 from heatparam.formats.units import DEFAULT_UNITS
@@ -44,7 +45,13 @@ def write_outputs(V, F, result, plans, *, units: str = DEFAULT_UNITS, sheet=None
 
     def recorded(pl):
         def write(tmp):
+            if not quiet and pl.format == "step":  # the B-spline fit can take a minute: say so before
+                print(f"heatparam: write {pl.path.name}: fitting B-spline faces ...", file=sys.stderr, flush=True)
+            t0 = time.perf_counter()
             info = BY_NAME[pl.format].write(tmp, run)
+            report["timings_s"][f"write {pl.format}"] = round(time.perf_counter() - t0, 4)
+            if not quiet:
+                print(f"heatparam: write {pl.path.name}: {time.perf_counter() - t0:.2f} s", file=sys.stderr)
             written.append({"path": str(pl.path), **(info if isinstance(info, dict) else {"format": pl.format})})
             return info
         return write
@@ -124,20 +131,38 @@ def unwrap_planned(input, plans, *, options=None, quiet: bool = True, units: str
     from heatparam.pipeline import parameterize
 
     V, F = load_mesh(input)
+    F, left_out = _without_point_faces(F)
     opts = make_options(options)
     given = units or (opts.unit_name if opts.unit_name != "model units" else None)
     opts = opts.replace(unit_name=given or DEFAULT_UNITS)  # the unit the pipeline's messages name
-    note = None if given else _assumed_units(V, F)
-    if note and opts.progress:
+    # texture space has no length unit: the assumed one matters to true-scale outputs only
+    sized = given or opts.pack == "texture"
+    notes = [n for n in (None if sized else _assumed_units(V, F), left_out) if n]
+    for note in notes if opts.progress else []:
         print(f"heatparam: warning: {note}", file=sys.stderr)
     result = parameterize(V, F, opts)
     result.report["input"] = str(input)
     result.report["units_assumed"] = not given
-    if note:
-        result.report["warnings"].insert(0, note)
+    result.report["warnings"][:0] = notes
     write_outputs(V, F, result, plans, units=opts.unit_name, sheet=sheet, strain_map=strain_map, quiet=quiet,
                   fit_tolerance=fit_tolerance)
     return result
+
+
+def _without_point_faces(F):
+    """F without the faces that repeat a vertex index, and the warning saying how many (None when none). Such a
+    face is a segment or a point (an STL triangle whose corners merged, an OBJ 'f 1 1 2'): no surface to lay out,
+    so a file keeps its surface; a file of nothing else is left to the pipeline's refusal."""
+    import numpy as np
+
+    F = np.asarray(F)
+    if F.ndim != 2 or F.shape[1] != 3 or F.dtype.kind not in "iu":
+        return F, None
+    rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
+    if not rep.any() or rep.all():
+        return F, None
+    return F[~rep], (f"{int(rep.sum())} faces repeat a vertex index (segments or points, no surface): left out of "
+                     "the map and of the outputs")
 
 
 def _assumed_units(V, F) -> str | None:
