@@ -50,6 +50,18 @@ def test_unwrap_round_trip(tmp_path, patch_off):
     assert not list(tmp_path.glob(".*.tmp"))  # no temporary files left behind
 
 
+def test_each_output_has_a_log_line_and_the_total_counts_them(tmp_path, patch_off, capsys):
+    src, _ = patch_off
+    out, svg, rep = tmp_path / "out.obj", tmp_path / "out.svg", tmp_path / "r.json"
+    assert main(["unwrap", str(src), "-o", str(out), "-o", str(svg), "--report", str(rep), "--fill", "none"]) == 0
+    err = capsys.readouterr().err
+    assert "heatparam: write out.obj: " in err and "heatparam: write out.svg: " in err
+    timings = json.loads(rep.read_text())["timings_s"]
+    assert "write obj" in timings and "write svg" in timings  # the report is written last: not its own time
+    total = float(err.strip().splitlines()[-1].rsplit(", ", 1)[1].removesuffix(" s"))
+    assert total >= sum(timings.values()) - 0.01
+
+
 def test_evaluate_prints_metrics(tmp_path, patch_off, capsys):
     src, _ = patch_off
     out = tmp_path / "out.obj"

@@ -42,7 +42,7 @@ NEST_TIME = 3.0
 ISOMETRIC_START_EXCESS = 1e-3
 #: On meshes of at least this many vertices whose conformal start is bijective the heat geodesics and MDS are skipped
 #: too: there the polish from the conformal layout reached the same map quality in less time on every part measured,
-#: even where MDS had the lower start energy (the iso mean equal to 6 digits; BENCHMARKS.md §13b). Where the
+#: even where MDS had the lower start energy (the iso mean equal to 6 digits; docs/history.md §13b). Where the
 #: conformal layout is not bijective (strong scan noise; halftunnel without seams) the heat stage runs: MDS may be
 #: the only bijective start.
 CONFORMAL_START_MIN_VERTICES = 30_000
@@ -60,7 +60,7 @@ SEAM_PAUSE_EXCESS = 0.03
 #: ... and the decision is taken there when it holds for any finished iso mean between this fraction of the paused
 #: map's excess (iso mean - 1) and all of it (the polish lowers it); otherwise both are finished first. Only the
 #: kept map is finished: the same map, the same iterations as without pausing. Finished excess / paused excess
-#: measured 0.908-1.000 on 12 maps (BENCHMARKS.md §11c); a lower floor leaves close decisions undecided, and both
+#: measured 0.908-1.000 on 12 maps (docs/history.md §11c); a lower floor leaves close decisions undecided, and both
 #: maps are then finished.
 SEAM_PAUSE_FLOOR = 0.75
 #: Default of ``refine_multilevel``: meshes this large polish coarse-to-fine (docs/refine.md).
@@ -147,7 +147,7 @@ OPTIONS: tuple[Option, ...] = (
            "the MDS layout as a start candidate. auto skips them (a) when the conformal layout is bijective and "
            "within {ISOMETRIC_START_EXCESS:.1%} of an isometry in energy (developable parts: the same map, faster); "
            "(b) on meshes of >= {CONFORMAL_START_MIN_VERTICES} vertices whenever the conformal layout is bijective, "
-           "a few flips repaired (measured: the same map quality in less time; BENCHMARKS §13, §18); (c) on the "
+           "a few flips repaired (measured: the same map quality in less time; docs/history.md §13, §18); (c) on the "
            "seams stage's cut-open mesh (MDS folds across the slits: the same map); (d) on a large mesh, for the "
            "seams stage's trial map without seams when the conformal layout is not bijective (MDS folded on every "
            "such part measured; §18). Skipped, the report's stress_rel_rms is null. auto never skips them when "

@@ -18,6 +18,8 @@ from contextlib import contextmanager
 
 from tqdm import tqdm
 
+from heatparam.options import to_cli_terms
+
 
 def stderr_is_tty() -> bool:
     """Whether the current ``sys.stderr`` is a terminal (False for anything without a working ``isatty``)."""
@@ -79,5 +81,6 @@ class Progress:
                     mininterval=0.5, delay=1.0, leave=False)
 
     def warn(self, message: str) -> None:
+        """A warning on the terminal, in command-line terms (``--seams none``; the report keeps the API's)."""
         if self.enabled:
-            print(f"heatparam: warning: {message}", file=sys.stderr, flush=True)
+            print(f"heatparam: warning: {to_cli_terms(message)}", file=sys.stderr, flush=True)

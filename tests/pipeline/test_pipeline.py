@@ -511,3 +511,15 @@ def test_seams_deterministic(halftunnel, halftunnel_maps):
     V, F = halftunnel
     again = parameterize(V, F)
     assert np.array_equal(again.uv, halftunnel_maps[0].uv) and np.array_equal(again.Fuv, halftunnel_maps[0].Fuv)
+
+
+def test_a_stretched_one_piece_map_says_how_to_get_pieces():
+    """A nearly hemispherical cap flattened in one piece stretches past the atlas's bound: a warning says how much
+    and what to ask for; a developable patch gets no such warning."""
+    s = datasets.flat_disk(radius=1.0, h=0.1)
+    cap = parameterize(datasets.lift_sphere(s.V[:, :2], 1.05), s.F)
+    said = [w for w in cap.report["warnings"] if "stretches" in w]
+    assert len(said) == 1 and "max_distortion=1.05" in said[0]
+    assert f"{cap.report['metrics']['iso_mean']:.3f}" in said[0]
+    flat = datasets.cylinder_patch(h=0.1)
+    assert not [w for w in parameterize(flat.V, flat.F).report["warnings"] if "stretches" in w]

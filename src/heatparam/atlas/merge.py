@@ -194,7 +194,7 @@ class Merging:
         the smaller: LSCM of the smaller chart alone with the stretch's vertices pinned where the larger chart has
         them (all the round's smaller charts in one solve). The union passes when no face of the smaller chart
         flips, its area-weighted isometric distortion (both charts' faces) is within the bound and no two edges of
-        its border cross. Cost ∝ the smaller chart, where flattening the union costs ∝ both (BENCHMARKS §21). The
+        its border cross. Cost ∝ the smaller chart, where flattening the union costs ∝ both (docs/history.md §21). The
         layouts of the unions that pass are kept under a's id. Returns (passed (k,) bool, undecided (k,) bool: the
         stretch is not one arc of both charts' borders — the union would not be a disk — or the shared solve
         failed; :meth:`_test` flattens those unions whole)."""

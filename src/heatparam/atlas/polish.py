@@ -2,7 +2,7 @@
 
 The layout the segmentation checked (``Segmentation.corner_uv``) is the start; a chart without one starts from its
 quick flattening (LSCM) where that is bijective. Starting from the checked layout alone (not the less distorted of
-it and a fresh LSCM) gave the same Newton iterations and iso means within 2e-4 without the LSCM (BENCHMARKS §23a).
+it and a fresh LSCM) gave the same Newton iterations and iso means within 2e-4 without the LSCM (docs/history.md §23a).
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@
    net, a cylinder's side an unrolled rectangle. A merge is tested by extending the larger chart's layout over
    the smaller one (LSCM of the smaller chart with the stretch pinned where the larger chart has it): the cost of
    a test is the smaller chart's, where flattening the whole union cost both (cow: 97k faces flattened in 556
-   tests → 21k; BENCHMARKS §21); where the stretch is not one arc of both borders (a chart's own seam ends on it:
+   tests → 21k; docs/history.md §21); where the stretch is not one arc of both borders (a chart's own seam ends on it:
    the union would have a hole) the union is flattened whole and its disk test decides. Every chart keeps the
    layout its last test checked (``Segmentation.corner_uv``).
 

@@ -39,7 +39,7 @@ def atomic_write(path: str | os.PathLike, mode: str = "w"):
     """
     p = Path(path)
     if not p.parent.exists():
-        raise HeatparamError(f"cannot write {p}: folder {p.parent} does not exist")
+        raise HeatparamError(f"cannot write {p}: folder {p.parent} does not exist (create it first)")
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
     try:
         os.chmod(tmp, file_mode())  # mkstemp makes 0600: outputs get 0666 & ~umask like any program's

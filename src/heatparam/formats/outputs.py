@@ -74,7 +74,7 @@ def plan_outputs(paths: Sequence[str | os.PathLike | tuple[str | os.PathLike, Co
             raise HeatparamError(f"output {p} exists and is not a regular file")
         parent = p.parent if str(p.parent) else Path(".")
         if not parent.is_dir():
-            what = "is not a folder" if parent.exists() else "does not exist"
+            what = "is not a folder" if parent.exists() else "does not exist (create it first)"
             raise HeatparamError(f"cannot write {p}: folder {parent} {what}")
         if not os.access(parent, os.W_OK | os.X_OK) or not can_create(parent):
             raise HeatparamError(f"cannot write {p}: folder {parent} is not writable")

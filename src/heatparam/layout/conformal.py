@@ -67,7 +67,7 @@ SCP_TOL = 1e-6
 SCP_MAX_ITERS = 60
 #: The seams stage's cut-open meshes: inverse iteration stopped after at most this many solves. Its unconverged
 #: layout reopens to a bijective start where the converged one crosses itself (beetle↑311k cut open: 20 solves
-#: energy 1.163, 60 solves 1.274, 10 not reopened; BENCHMARKS.md §17a)
+#: energy 1.163, 60 solves 1.274, 10 not reopened; docs/history.md §17a)
 SCP_CUT_MAX_ITERS = 20
 #: ... with Q + SCP_SHIFT·(mean diagonal of Q / mean boundary mass)·B factorized (Q itself is singular)
 SCP_SHIFT = 1e-8

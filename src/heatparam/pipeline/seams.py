@@ -246,7 +246,7 @@ def noise_bound(flat: Flat) -> str | None:
     maps. So when ``coarse iso mean - 1 < SEAM_MIN_GAIN × fine iso mean`` (the fine one's lowest finished value
     when paused: :func:`_range`; the coarse one's paused value, an upper bound, when its level paused) the cut-open
     map cannot be ``SEAM_MIN_GAIN`` better and is not tried. Measured drops of iso mean, coarse → fine level, where
-    both maps were finished or paused (BENCHMARKS.md §19): halftunnel↑50k 0.491 → 0.483, a curved cap with holes
+    both maps were finished or paused (docs/history.md §19): halftunnel↑50k 0.491 → 0.483, a curved cap with holes
     and noise 0.2 × edge 0.013 → 0.005, a cylinder with holes and noise 0.2 × edge 0.0001 → 0.00002."""
     ml = flat.method["refine"].get("multilevel", {})
     coarse = ml.get("coarse_iso_mean")

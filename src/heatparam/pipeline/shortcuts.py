@@ -19,7 +19,7 @@ The heat stage (fill, geodesics, MDS) is not computed when
     a few flips: on both such parts measured the MDS layout folded too (halftunnel upsampled to 201k: 52,925 flipped
     faces; a cylinder with holes and noise 0.3 × the edge at 182k: 249, beyond repair), the trial started from Tutte
     either way and the kept map was the same, so the heat stage (22-31 s there) is skipped: 67-81 → 58 s and
-    254 → 247 s (BENCHMARKS §18e). Where the trial's map is kept it has started from Tutte;
+    254 → 247 s (docs/history.md §18e). Where the trial's map is kept it has started from Tutte;
     ``mds_start='always'`` computes the heat stage.
 
 Tests compare (a) and (c) with ``mds_start="always"`` bit for bit, (b) and (d) by map quality.

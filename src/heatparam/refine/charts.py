@@ -32,7 +32,7 @@ CHART_GAP = 0.25
 #: the joint polish also stops once an iteration gains less than this fraction of the energy's excess over an
 #: isometry (``newton.polish``'s excess_tol), and, whatever the step and the scaffold, after
 #: ``newton.EXCESS_STALL_ITERS`` such iterations in a row: on cow half the iterations for an iso mean 2e-4 higher
-#: (BENCHMARKS.md §18a).
+#: (docs/history.md §18a).
 EXCESS_TOL = 0.03
 
 

@@ -33,7 +33,7 @@ COARSE_FRACTION = 1 / 8
 COARSE_MIN = 8_000
 
 #: A coarse level of at least this many vertices gets a coarser level of its own (camelhead↑182k's 27.6k level:
-#: 15 → 5 Newton iterations; BENCHMARKS.md §24)
+#: 15 → 5 Newton iterations; docs/history.md §24)
 LEVEL_MULTILEVEL_MIN = 20_000
 
 REPAIR_RINGS = 8  # each repair round re-solves the flipped faces' 8-ring neighbourhoods ...
@@ -336,7 +336,7 @@ class CoarseLevel:
         The start's weights fail where the start is far from an affine image of the result (LSCM's scale varies a
         lot across a repair region); the prolongated layout's own weights keep it wherever its stars are valid and
         unfold the rest. The finest level tries the start's first, a coarse level the prolongated layout's
-        (camelhead↑182k's 27.6k level: 12 failed rounds → 1; BENCHMARKS.md §25)."""
+        (camelhead↑182k's 27.6k level: 12 failed rounds → 1; docs/history.md §25)."""
         weights = [("start layout", self.x), ("prolongated layout", y)]
         if self.settings.coarse:
             weights.reverse()
@@ -391,7 +391,7 @@ class Multilevel:
     def fine_settings(self, y: np.ndarray | None) -> PolishSettings:
         """The fine polish's settings. From a coarse level that converged, the boundary is where that level left
         it: the scaffold starts at the weight it ended with, is kept while it holds, and is taken only once a step
-        would make boundaries cross (BENCHMARKS.md §20); after one that stalled at the barrier the scaffold starts
+        would make boundaries cross (docs/history.md §20); after one that stalled at the barrier the scaffold starts
         stiff (boundaries there still push) but is kept while it holds. Either way the tolerance is loosened
         (``MULTILEVEL_FINE_TOL_FACTOR``) and the first small uncut step stops the polish."""
         s = self.settings

@@ -80,7 +80,7 @@ STALL_ITERS = 5  # the polish gives up after this many barrier-limited iteration
 
 #: With ``excess_tol`` (the atlas's joint polish), this many iterations in a row that each gain less than excess_tol
 #: of the energy's excess stop the polish, whatever the step length and the scaffold's weight: on cow the 5
-#: barrier-limited iterations after the first such one gained 2e-5 of energy 1.00094 together (BENCHMARKS §18)
+#: barrier-limited iterations after the first such one gained 2e-5 of energy 1.00094 together (docs/history.md §18)
 EXCESS_STALL_ITERS = 2
 
 #: Without a scaffold (``ScaffoldUse.NEVER``) a step is halved at most this many times until no boundary

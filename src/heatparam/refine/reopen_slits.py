@@ -7,7 +7,7 @@ energy 37.6 against 1.21). The crossings are local: the copies of every seam ver
 moved to their mean (the slit closed there, as in the surface before the cut) and pushed a little into their own
 sides (along the cut boundary's inward normal, the step shrunk wherever a face would lose half its area); where that
 still leaves a crossing, the seam vertices near them join (``REOPEN_WIDEN``). The seams stage offers the result to
-the refinement as the start candidate ``"conformal_reopened"`` (BENCHMARKS.md §14).
+the refinement as the start candidate ``"conformal_reopened"`` (docs/history.md §14).
 """
 
 from __future__ import annotations
