@@ -1,0 +1,27 @@
+"""Rebuild the README's two pictures from ``heatparam demo``: its SVG pattern rendered on white (cairosvg) and its
+preview PNG. Usage: ``python docs/figures/regenerate.py`` (about a minute; writes into docs/figures/)."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import cairosvg
+
+HERE = Path(__file__).resolve().parent
+
+
+def main() -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        subprocess.run([sys.executable, "-m", "heatparam", "demo", "--output-dir", tmp, "--quiet"], check=True)
+        svg = next(Path(tmp).glob("*.svg"))
+        cairosvg.svg2png(url=str(svg), write_to=str(HERE / "pattern-demo-svg.png"), output_width=900,
+                         background_color="white")
+        shutil.copyfile(next(Path(tmp).glob("*.png")), HERE / "pattern-demo-preview.png")
+
+
+if __name__ == "__main__":
+    main()
