@@ -128,3 +128,13 @@ def test_large_obj_fast_path_exact(tmp_path):
     V2, F2 = formats.load_mesh(p)
     assert np.array_equal(V2, V) and np.array_equal(F2, F)
     assert np.array_equal(V2, meshes.load_meshio(p)[0]) and np.array_equal(F2, meshes.load_meshio(p)[1])
+
+
+@pytest.mark.parametrize("name, text, index", [
+    ("short.obj", "v 0 0 0\nv 1 0 0\nf 1 2 3\n", 3),
+    ("short.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", 3),
+])
+def test_a_face_beyond_the_vertices_is_named_with_the_file(tmp_path, name, text, index):
+    (tmp_path / name).write_text(text)
+    with pytest.raises(HeatparamError, match=rf"cannot read .*{name}: face 1 uses vertex index {index}, out of range"):
+        formats.load_mesh(tmp_path / name)

@@ -86,6 +86,12 @@ def load_mesh(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         raise HeatparamError(f"{p}: no faces: a point cloud; mesh it first, e.g. by Poisson reconstruction")
     if len(V) == 0 or len(F) == 0:
         raise HeatparamError(f"cannot read {p}: the file holds no triangles")
+    bad = (F < 0) | (F >= len(V))
+    if bad.any():  # named here, with the file, before any check of the mesh that would count the wrong thing
+        f, c = np.argwhere(bad)[0]
+        index = F[f, c] + (suffix == ".obj")  # as the file writes it: OBJ counts from 1, the others from 0
+        raise HeatparamError(f"cannot read {p}: face {f + 1} uses vertex index {index}, out of range (the file has "
+                             f"{len(V)} vertices)")
     return V, F
 
 class NotSimpleObj(Exception):
