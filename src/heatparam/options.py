@@ -181,7 +181,7 @@ OPTIONS: tuple[Option, ...] = (
            "automatic: a mesh that is one disk stays one piece with --pack scale, and every chart of an atlas, or "
            "of a texture (--pack texture), is held to 1.05; a number > 1 is the bound for every chart, a disk's "
            "too", low=0.0, high=100.0, flag="--max-distortion",
-           metavar="X", short="chart distortion bound; 0 = 1.05 in atlases", group="atlas"),
+           metavar="X", short="chart distortion bound; 0 = auto (1.05)", group="atlas"),
     Option("max_charts", 0, "int", "atlas: a cap on the charts of each part (merging goes on past the bound while "
            "the merged charts stay bijective); 0 = no cap", low=0, high=10**6, flag="--max-charts", metavar="N",
            short="cap on the charts per part; 0 = none", group="atlas"),
