@@ -127,8 +127,9 @@ def _git(gitdir: Path, *args: str) -> bytes:
     return subprocess.run(["git", f"--git-dir={gitdir}", *args], check=True, capture_output=True).stdout
 
 
-def mirror_members(mirror: Path, src: dict) -> dict[str, bytes] | None:
-    """The mesh files under ``src['folders']`` in a local mirror of ``src['repo']``, or None when absent."""
+def mirror_members(mirror: Path, src: dict) -> dict[str, bytes | None] | None:
+    """The mesh files under ``src['folders']`` in a local mirror of ``src['repo']`` (None for a file the mirror
+    lists without its bytes), or None when there is no mirror of it."""
     base = mirror / src["repo"].replace("/", "+")
     gitdir = next((g for g in (base / "repo", base / ".git", base) if (g / "HEAD").exists()), None)
     out = {}
@@ -141,7 +142,7 @@ def mirror_members(mirror: Path, src: dict) -> dict[str, bytes] | None:
                 try:
                     out[name] = _git(gitdir, "cat-file", "blob", meta.split()[2])
                 except subprocess.CalledProcessError:
-                    continue  # a large blob the mirror lists but does not hold
+                    out[name] = None  # a large blob the mirror lists but does not hold
         return out
     if not base.is_dir():
         return None
@@ -172,7 +173,11 @@ class Corpus:
         self.files: list[dict] = []
         self.companions: list[dict] = []
 
-    def add(self, source: str, name: str, data: bytes) -> None:
+    def add(self, source: str, name: str, data: bytes | None) -> None:
+        if data is None:
+            self.files.append(dict(path=f"{source}/{name}", source=source, skipped="not held by the mirror "
+                                   "(a large file kept out of its git objects)"))
+            return
         digest = sha256_bytes(data)
         row = dict(path=f"{source}/{name}", source=source, sha256=digest, bytes=len(data))
         if name.lower().endswith(COMPANIONS):
