@@ -54,15 +54,16 @@ def _strips():
     return lambda: build_pattern(s.V, s.F, uv, rows, s.F.ravel(), chart)
 
 
-@pytest.mark.parametrize("grain", ["none", "180", "free"])
-def test_sheets_nest_outlines_apart_inside_their_sheet_and_repeatably(grain):
+@pytest.mark.parametrize("grain, fill", [("none", 0.3), ("180", 0.3), ("free", 0.3), ("free", 1.5)])
+def test_sheets_nest_outlines_apart_inside_their_sheet_and_repeatably(grain, fill):
+    """Sheets of (pieces' area) / fill: one sheet, or (fill > 1) several, each piece inside its own frame."""
     make = _strips()
     base = make()
     area = sum(shapely.area(shapely.polygons(base.uv[base.Fuv])))
-    side = float(np.sqrt(area / 0.3))
-    gap = 0.01 * side
-    pat = layout_charts(make(), (side, side), gap, grain=grain, nest_time=1.0, seed=3)
-    again = layout_charts(make(), (side, side), gap, grain=grain, nest_time=1.0, seed=3)
+    sheet = (float(np.sqrt(area / fill)),) * 2 if fill < 1 else (float(area / fill / 2.0), 2.0)  # strips 1.8 tall
+    gap = 0.01 * sheet[0]
+    pat = layout_charts(make(), sheet, gap, grain=grain, nest_time=1.0, seed=3)
+    again = layout_charts(make(), sheet, gap, grain=grain, nest_time=1.0, seed=3)
     if not again.nesting["stopped_by_time"] and not pat.nesting["stopped_by_time"]:
         assert np.array_equal(pat.uv, again.uv)
     polys = []
@@ -79,6 +80,8 @@ def test_sheets_nest_outlines_apart_inside_their_sheet_and_repeatably(grain):
         for j in range(i):
             assert polys[i].distance(polys[j]) >= gap * (1 - 1e-9)
     assert len(pat.sheet_use) == len(pat.sheets) and np.all((pat.sheet_use > 0) & (pat.sheet_use < 1))
+    assert len(pat.sheets) >= 2 if fill > 1 else len(pat.sheets) == 1
+    assert np.all(np.diff(pat.sheets[:, 0]) > sheet[0])  # side by side, apart
 
 
 def test_bunny_on_one_sheet_of_area_over_055(tmp_path):
