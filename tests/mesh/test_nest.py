@@ -151,3 +151,14 @@ def test_dilated_runs_are_the_square_dilation():
             lengths = shape.runs[:, 2] - shape.runs[:, 1] + 1
             for r, longest in shape.rows:
                 assert longest == lengths[shape.runs[:, 0] == r].max()
+
+
+@pytest.mark.parametrize("kw, name", [({"sheet": (0.0, 5.0)}, "sheet"), ({"sheet": (5.0, float("inf"))}, "sheet"),
+                                      ({"gap": -1.0}, "gap"), ({"gap": float("nan")}, "gap"),
+                                      ({"nest_time": -1.0}, "nest_time"), ({"nest_time": float("inf")}, "nest_time")])
+def test_layout_refuses_bad_sheet_arguments_in_one_line(kw, name):
+    s = datasets.flat_disk(1.0, h=0.2)
+    args = {"sheet": (5.0, 5.0), **kw}
+    with pytest.raises(HeatparamError, match=f"^{name} must be") as e:
+        layout_charts(build_pattern(s.V, s.F, s.uv_true, s.F, np.arange(len(s.V))), **args)
+    assert "\n" not in str(e.value)

@@ -360,6 +360,7 @@ def layout_charts(pattern: Pattern, sheet: tuple[float, float] | None = None, ga
     the boxes on shelves, translated only (first-fit decreasing height). A chart larger than the sheet raises
     HeatparamError (its lengths named in ``units``). ``pattern.sheet_use``: the covered fraction of each sheet.
     """
+    _check_sheet_args(sheet, gap, nest_time)
     charts = pattern.charts
     lo = np.array([pattern.uv[c.rows].min(axis=0) for c in charts])
     hi = np.array([pattern.uv[c.rows].max(axis=0) for c in charts])
@@ -394,6 +395,24 @@ def layout_charts(pattern: Pattern, sheet: tuple[float, float] | None = None, ga
     pattern.sheets = frames
     pattern.sheet_use = _sheet_use(pattern, len(frames))
     return pattern
+
+
+def _check_sheet_args(sheet, gap, nest_time) -> None:
+    """One line naming the argument for a sheet size or gap that is not a positive finite number, or a time that
+    is negative or not finite."""
+    def bad(x, low_ok: bool) -> bool:
+        try:
+            v = float(x)
+        except (TypeError, ValueError):
+            return True
+        return not (np.isfinite(v) and (v >= 0 if low_ok else v > 0))
+
+    if sheet is not None and (len(sheet) != 2 or any(bad(x, False) for x in sheet)):
+        raise HeatparamError(f"sheet must be two positive finite sizes (W, H), got {sheet!r}")
+    if gap is not None and bad(gap, False):
+        raise HeatparamError(f"gap must be a positive finite length, got {gap!r}")
+    if bad(nest_time, True):
+        raise HeatparamError(f"nest_time must be a finite number of seconds, at least 0, got {nest_time!r}")
 
 
 def _refuse(chart: int, size: np.ndarray, sheet: tuple[float, float], gap: float, units: str) -> None:
