@@ -94,7 +94,7 @@ def test_bunny_on_one_sheet_of_area_over_055(tmp_path):
     V, F = load_mesh(V0)
     a3 = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1).sum()
     side = float(np.sqrt(a3 / 0.55))
-    res = unwrap_file(V0, out, units="m", sheet=Sheets((side, side)))
+    res = unwrap_file(V0, [out, tmp_path / "b.svg"], units="m", sheet=Sheets((side, side)))
     assert res.report["pattern"]["sheets"] == 1
     doc = ezdxf.readfile(out)
     msp = doc.modelspace()
@@ -105,7 +105,8 @@ def test_bunny_on_one_sheet_of_area_over_055(tmp_path):
         assert frames[0].contains(p)
         for q in outlines[:i]:
             assert not p.overlaps(q) and not p.within(q) and not q.within(p) and p.intersection(q).area == 0
-    assert any("sheet 1 of 1:" in e.dxf.text for e in msp.query("TEXT"))
+    note = f"sheet 1 of 1: {res.report['pattern']['sheet_use'][0]:.1%} used"
+    assert any(e.dxf.text == note for e in msp.query("TEXT")) and note in (tmp_path / "b.svg").read_text()
 
 
 def test_bad_sheet_input_is_one_line_exit_2_nothing_written(tmp_path, capsys):
