@@ -40,6 +40,8 @@ def test_orientation_rules():
     assert [round(R[0, 0]) for R in orientations(P, "180")] == [1, -1]
     free = orientations(P, "free")
     assert len(free) == 8 and all(np.allclose(R @ R.T, np.eye(2)) and np.linalg.det(R) > 0 for R in free)
+    fine = orientations(P, "fine")
+    assert len(fine) == 20 and all(any(np.allclose(R, Q) for Q in fine) for R in free)
     with pytest.raises(ValueError):
         orientations(P, "sideways")
 

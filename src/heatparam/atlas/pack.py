@@ -3,9 +3,9 @@
 ``scale``: true scale (model units), each chart turned to its minimum-area bounding rectangle, shelf packing of the
 boxes with a gap of ``gap`` model units between them.
 ``texture``: the charts nested by their rasters in a ``resolution``² texture (``mesh.nest``: rotations by quarter
-turns of their own and of their minimum-area rectangle's frame, bottom-left fill, largest first, by either of two
-placement rules), every chart at one texel density: the largest that fits (bisection), or ``texels_per_unit`` when
-given. Two charts are at least
+turns of their own and of their minimum-area rectangle's frame, and 22.5° steps for the large charts; bottom-left
+fill, largest first, by either of two placement rules), every chart at one texel density: the largest that fits
+(bisection), or ``texels_per_unit`` when given. Two charts are at least
 ``padding`` pixels apart (their conservative rasters, one dilated by the padding, never meet) and every chart at
 least half of it from the border; UVs in [0,1]².
 """
@@ -20,6 +20,10 @@ from heatparam.mesh.planar import shelf_pack
 
 __all__ = ["min_area_rotation", "pack_charts"]
 
+#: Charts holding at least this fraction of the UV area also try turns between the quarter turns (22.5° steps):
+#: the large pieces decide the packing (beetle's 5 charts 0.323 -> 0.436, cow 0.585 -> 0.600: bench/bench_pack.py);
+#: the many small ones keep 8 orientations (time grows with charts x orientations).
+FINE_TURNS_FRACTION = 0.02
 #: The bisection on the texel density stops when the bracket is this narrow (relative): utilization within ~1%.
 DENSITY_TOLERANCE = 0.005
 
@@ -97,8 +101,10 @@ class _TexturePack:
     """The charts nested in one ``resolution``² texture at one texel density (module docstring)."""
 
     def __init__(self, uvs: list[np.ndarray], Fs: list[np.ndarray], padding: float, resolution: int):
-        self.pieces = [Piece(P, F, orientations(P, "free")) for P, F in zip(uvs, Fs, strict=True)]
         self.areas = np.array([_uv_area(P, F) for P, F in zip(uvs, Fs, strict=True)])
+        big = self.areas >= FINE_TURNS_FRACTION * self.areas.sum()
+        self.pieces = [Piece(P, F, orientations(P, "fine" if b else "free"))
+                       for P, F, b in zip(uvs, Fs, big, strict=True)]
         self.order = np.argsort(-self.areas, kind="stable")  # largest first
         self.R = resolution
         self.gap_px = int(np.ceil(padding - 1e-9))

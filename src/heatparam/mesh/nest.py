@@ -65,17 +65,22 @@ def _quarter_turns(R: np.ndarray) -> list[np.ndarray]:
 
 def orientations(P: np.ndarray, rule: str) -> list[np.ndarray]:
     """The (2,2) rotations a piece with points P (n,2) may take: ``none`` the identity only (the grain kept),
-    ``180`` also the half turn, ``free`` the quarter turns of the identity and of the minimum-area rectangle's frame."""
+    ``180`` also the half turn, ``free`` the quarter turns of the identity and of the minimum-area rectangle's frame,
+    ``fine`` those and the quarter turns of that frame turned by 22.5, 45 and 67.5 degrees (large odd pieces)."""
     if rule == "none":
         return [np.eye(2)]
     if rule == "180":
         return [np.eye(2), -np.eye(2)]
-    if rule != "free":
-        raise ValueError(f"rotation rule must be none, 180 or free, got {rule!r}")
+    if rule not in ("free", "fine"):
+        raise ValueError(f"rotation rule must be none, 180, free or fine, got {rule!r}")
     out = _quarter_turns(np.eye(2))
     R = min_area_rotation(P)
     if abs(abs(R[0, 0]) - 1.0) > 1e-9 and abs(R[0, 0]) > 1e-9:  # not already a quarter turn
         out += _quarter_turns(R)
+    if rule == "fine":
+        for a in np.radians([22.5, 45.0, 67.5]):
+            c, s = np.cos(a), np.sin(a)
+            out += _quarter_turns(np.array([[c, -s], [s, c]]) @ R)
     return out
 
 
