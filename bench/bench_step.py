@@ -242,8 +242,8 @@ def _seeds(spec: str) -> list[int]:
 
 
 FAMILY_HEAD = ("| seed | part | faces (mesh) | expected faces | STEP faces | creases | splits | s→m max | s→m p99 "
-               "| m→s max | m→s p99 | area % | valid | invalid faces | shells | free edges | solids | warnings | map s "
-               "| write_step s | accepted |")
+               "| m→s max | m→s p99 | area % | valid | invalid faces | unmeshed faces | shells | free edges | solids "
+               "| warnings | map s | write_step s | accepted |")
 
 
 def _accepted(m: dict, warnings: int) -> str:
@@ -252,6 +252,7 @@ def _accepted(m: dict, warnings: int) -> str:
     fails = [f"{k} {m[k]:.2f}" for k in ("s2m_max", "m2s_max") if m[k] > 1.5]
     fails += [f"area {m['area']:+.2f}%"] if abs(m["area"]) > 1.0 else []
     fails += [] if m["valid"] and not m["invalid_faces"] else ["invalid"]
+    fails += [f"{m['untessellated']} faces not meshed by OpenCascade"] if m["untessellated"] else []
     fails += [] if (m["shells"], m["free_edges"], m["solids"]) == (1, 0, 1) else ["not one closed solid"]
     fails += ["silent miss"] if max(m["s2m_max"], m["m2s_max"]) > 1.0 and not warnings else []
     return "yes" if not fails else "NO: " + ", ".join(fails)
@@ -280,8 +281,8 @@ def family(seeds: list[int]) -> None:
         print(f"| {seed} | {desc} | {len(F)} | {expected['faces']} | {m['faces']} | {rep['creases']} "
               f"| {rep['tolerance_splits']} | {m['s2m_max']:.2f} | {m['s2m_p99']:.2f} | {m['m2s_max']:.2f} "
               f"| {m['m2s_p99']:.2f} | {m['area']:+.2f} | {'yes' if m['valid'] else 'NO'} | {m['invalid_faces']} "
-              f"| {m['shells']} | {m['free_edges']} | {m['solids']} | {len(rep['warnings'])} | {t_map:.1f} "
-              f"| {sec:.1f} | {ok} |", flush=True)
+              f"| {m['untessellated']} | {m['shells']} | {m['free_edges']} | {m['solids']} | {len(rep['warnings'])} "
+              f"| {t_map:.1f} | {sec:.1f} | {ok} |", flush=True)
         for w in rep["warnings"]:
             print(f"  <!-- seed {seed}: {w} -->", file=sys.stderr)
     _distribution(rows)

@@ -16,7 +16,7 @@ read back, tessellated and compared with the mesh both ways).
    (it extends the surface smoothly where there is no data). The knot grid starts at min(32, √triangles / 2)
    intervals on the longer side; each round, knot intervals holding a data point off by more than 0.9 tolerance
    are halved (never below 1/8 of the triangles); when the data are met, the surface is checked between them, at
-   a lattice of points in every triangle as dense as the knots (:func:`_check_samples`), and the triangles where a
+   rows of points in every triangle as dense as the knots (:func:`_check_samples`), and the triangles where a
    check point is off join the data with all their check points. The border's points are held to 0.25 tolerance
    (weight 10), so that neighbouring faces meet within half the tolerance. The penalty weight (1e-2 of the data
    term's mean diagonal) was measured: at 1e-4 camelhead's face was 1.5% larger than the mesh (ripples between
@@ -70,9 +70,8 @@ _PENALTY = 1e-2  # weight of the control-net smoothness term, relative to the me
 _START_INTERVALS = 32  # knot intervals along the longer side of the parameter rectangle at the first fit (at most)
 _SPLIT_AT = 0.9  # knot intervals holding a vertex deviating by more than this x tolerance are halved
 _MAX_ROUNDS = 20
-_CHECK_LEVEL = 4  # the fit is checked at the points (i, j, k)/L of every triangle, L >= 4 (12 besides the corners)
+_CHECK_LEVEL = 4  # the fit is checked in every triangle at least at the points (i, j, k)/4 (12 besides the corners)
 _FINEST = 8  # knot intervals are not halved below 1/8 of the (10th percentile) triangle's uv diameter
-_MAX_CHECK_LEVEL = 2 * _FINEST  # and L <= 16 (150 points)
 # up to n * bandwidth^2 flops a banded Cholesky (LAPACK, no ordering): 8 ms vs CHOLMOD's 33 ms at 2.6k unknowns,
 # 73 vs 314 ms at 12k
 _BANDED_FLOPS = 3e9
@@ -239,21 +238,44 @@ def _subset(s: _Samples, keep: np.ndarray) -> _Samples:
 
 def _check_samples(uv: np.ndarray, X_row: np.ndarray, Fc: np.ndarray, border: np.ndarray, bu: np.ndarray,
                    bv: np.ndarray, faces: np.ndarray | None = None) -> _Samples:
-    """The check samples of the triangles ``faces`` (all by default) of Fc: the points (i, j, k)/L of each, L from
-    ``_CHECK_LEVEL`` (4) up to ``_MAX_CHECK_LEVEL`` so that they are at most about half the shortest knot
-    interval over the triangle apart: a surface cannot then ripple between them unseen (the cow's small faces,
-    their knots finer than their triangles, were up to 6.8 tolerances off the mesh between 4-level checks that met
-    it; with the knot interval at the centroid instead of the shortest, 5.1). The knots are never refined below
-    1/``_FINEST`` of the triangles (:func:`_fit_surface`), so L <= 2 ``_FINEST``."""
+    """The check samples of the triangles ``faces`` (all by default) of Fc: in each, rows of points parallel to its
+    shortest edge (:func:`_strip_weights`), at most about half the shortest knot interval over the triangle apart
+    along and across it, so that a surface cannot ripple between them unseen (the cow's small faces, their knots
+    finer than their triangles, were up to 6.8 tolerances off the mesh between 4-level checks that met it; with the
+    knot interval at the centroid instead of the shortest, 5.1), and at least a lattice (i, j, k)/4. No cap on the
+    density: the knots are never refined below 1/``_FINEST`` of the face's 10th-percentile triangle, and a sliver
+    or a large triangle beside small ones spans many such intervals (a CAD export's 3-triangle face across a 90°
+    crease was checked within the tolerance by a 16-lattice and read back 7 tolerances off between its points)."""
     faces = np.arange(len(Fc)) if faces is None else faces
     T = uv[Fc[faces]]  # (f,3,2)
-    diam = np.linalg.norm(T - np.roll(T, 1, axis=1), axis=2).max(axis=1)
+    opposite = np.linalg.norm(np.roll(T, -1, axis=1) - np.roll(T, 1, axis=1), axis=2)  # the edge opposite corner k
+    turn = (np.argmin(opposite, axis=1)[:, None] + np.arange(3)) % 3  # the corner opposite the shortest edge first
+    Fr, Br = np.take_along_axis(Fc[faces], turn, axis=1), np.take_along_axis(border[faces], turn, axis=1)
+    short, long_ = opposite.min(axis=1), np.maximum(opposite.max(axis=1), 1e-300)
     lo, hi = T.min(axis=1), T.max(axis=1)
-    knot = np.minimum(_shortest_in(bu, lo[:, 0], hi[:, 0]), _shortest_in(bv, lo[:, 1], hi[:, 1]))
-    level = np.clip(np.ceil(2.0 * diam / np.maximum(knot, 1e-300)), _CHECK_LEVEL, _MAX_CHECK_LEVEL).astype(int)
-    parts = [_Samples(uv, X_row, Fc[faces[level == L]], _lattice(L), border[faces[level == L]], faces[level == L])
-             for L in np.unique(level)]
+    knot = np.maximum(np.minimum(_shortest_in(bu, lo[:, 0], hi[:, 0]), _shortest_in(bv, lo[:, 1], hi[:, 1])), 1e-300)
+    rows = np.maximum(np.ceil(2.0 * long_ / knot), _CHECK_LEVEL)
+    across = np.clip(np.maximum(np.ceil(2.0 * short / knot), np.ceil(rows * short / long_)), 1, rows)
+    pairs, group = np.unique(np.stack([rows, across], 1).astype(np.int64), axis=0, return_inverse=True)
+    order = np.argsort(group.reshape(-1), kind="stable")  # the triangles of each (rows, across) pair: one slice
+    ends = np.cumsum(np.bincount(group.reshape(-1), minlength=len(pairs)))
+    slices = [order[e - n: e] for e, n in zip(ends, np.diff(ends, prepend=0), strict=True)]
+    parts = [_Samples(uv, X_row, Fr[sl], _strip_weights(int(a), int(b)), Br[sl], faces[sl])
+             for (a, b), sl in zip(pairs, slices, strict=True)]
     return _Samples.joined(parts)
+
+
+def _strip_weights(rows: int, across: int) -> np.ndarray:
+    """Barycentric weights (p,3), corners left out, of the points of a triangle in ``rows`` rows parallel to the
+    edge opposite its first corner: row i (of rows + 1, the first the corner) at i/rows of the way to that edge,
+    ceil(i across / rows) intervals along it. rows = across gives the lattice (i, j, k)/rows."""
+    s = np.arange(rows + 1) / rows
+    m = np.ceil(np.arange(rows + 1) * across / rows).astype(np.int64)
+    i = np.repeat(np.arange(rows + 1), m + 1)
+    j = np.arange(len(i)) - np.repeat(np.cumsum(m + 1) - (m + 1), m + 1)
+    t = j / np.maximum(m[i], 1)
+    W = np.column_stack([1 - s[i], s[i] * (1 - t), s[i] * t])
+    return W[~np.isclose(W, 1.0).any(axis=1)]
 
 
 def _deviations(C: np.ndarray, tu: np.ndarray, tv: np.ndarray, uv: np.ndarray, X: np.ndarray) -> np.ndarray:
@@ -845,7 +867,7 @@ def _write_shape(shape, path: Path, unit: str, name: str | None = None, precisio
     from OCP.TCollection import TCollection_HAsciiString
 
     if not path.parent.exists():
-        raise HeatparamError(f"cannot write {path}: folder {path.parent} does not exist")
+        raise HeatparamError(f"cannot write {path}: folder {path.parent} does not exist (create it first)")
     shown = Path(name) if name else path  # the file's own name in its header (not a temporary's)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp.step", dir=path.parent)
     os.close(fd)
