@@ -32,7 +32,7 @@ PRELOAD = ("heatparam.unwrap", "heatparam.pipeline", "heatparam.pipeline.atlas_s
            "heatparam.formats.dxf", "heatparam.formats.svg", "heatparam.formats.preview", "heatparam.formats.readers",
            "heatparam.formats.outputs", "heatparam.refine", "heatparam.fill", "heatparam.heat", "scipy.sparse.linalg",
            "scipy.spatial", "igl", "gpytoolbox", "cholespy", "pypardiso", "ezdxf", "matplotlib.pyplot",
-           "matplotlib.path", "meshio", "trimesh")
+           "matplotlib.path", "meshio", "trimesh", "numba", "heatparam.mesh.nest")
 
 
 def die_with_parent() -> None:  # pragma: no cover - runs in a child process
