@@ -360,9 +360,12 @@ _DOCS_INTRO = (
     "Every knob of the pipeline. The API takes the names (`parameterize(V, F, fill=\"none\")`, "
     "`heatparam.options.make_options`), `heatparam unwrap` and `heatparam batch` the flags (`heatparam geodesics` "
     "the heat method's: `--time-step`, `--t-coef`, `--solver`); `--help` shows one line each. The output flags "
-    "(`-o`, `--units`, `--sheet`, `--strain-map`, `--fit-tolerance`, `--report`, `--preview`) are described in "
-    "[formats.md](formats.md). Paths (docs/fill.md) are relative to the repository's root; section signs after "
-    "BENCHMARKS name sections of BENCHMARKS.md (the fill's section 2.5 is the paper's).")
+    "(`-o`, `--units`, `--sheet`, `--gap`, `--grain`, `--nest-time`, `--strain-map`, `--fit-tolerance`, "
+    "`--report`, `--preview`) are described in [formats.md](formats.md), `heatparam batch`'s own (`--workers`, "
+    "`--scheduler`, `--task-timeout`, `--task-memory`, `--format`, `--force`) by `heatparam batch --help`; "
+    "`--quiet` silences the progress lines. Paths (docs/fill.md) are relative to the repository's root; section "
+    "signs after BENCHMARKS name sections of BENCHMARKS.md, or of docs/history.md where the label moved there (the "
+    "fill's section 2.5 is the paper's).")
 
 
 def options_markdown() -> str:
