@@ -226,10 +226,11 @@ def xatlas_judged(path: Path) -> dict:
     from heatparam.formats import load_mesh
 
     V, F = load_mesh(path)
+    V32 = V.astype(np.float32)  # what xatlas is given, and so the 3D areas its map is judged against
     t0 = time.perf_counter()
-    vmap, FT, UV = xatlas.parametrize(V.astype(np.float32), F.astype(np.uint32))
+    vmap, FT, UV = xatlas.parametrize(V32, F.astype(np.uint32))
     sec = time.perf_counter() - t0
-    res = judge(V, UV.astype(np.float64), F, FT.astype(np.int64))
+    res = judge(V32.astype(np.float64)[vmap], UV.astype(np.float64), FT.astype(np.int64), FT.astype(np.int64))
     res["seconds"] = sec
     return res
 
@@ -285,6 +286,10 @@ def print_table(rows: list[dict], corpus: Path, wall: float, cmd: str) -> None:
               f"{sum(x['overlaps_within'] + x['overlaps_across'] for x in xs)} (rounding level "
               f"{sum(x['overlaps_rounding'] for x in xs)}), files with any "
               f"{sum(_defects(x) > 0 for x in xs)}; time {sum(x['seconds'] for x in xs):.0f} s")
+        worst = sorted((r for r in peer if "error" not in r["xatlas"]), key=lambda r: -_defects(r["xatlas"]))[:8]
+        for r in worst:
+            if _defects(r["xatlas"]):
+                print(f"- xatlas {rel[id(r)]}: {r['xatlas']}")
 
 
 def main() -> None:
