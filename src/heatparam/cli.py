@@ -376,8 +376,9 @@ def cmd_batch(args: argparse.Namespace) -> int:
         print(f"heatparam: {len(summary['rows'])} meshes: {c['ok']} ok, {c['skipped']} up to date, "
               f"{c['refused']} refused, {c['failed']} failed in {summary['wall_s']:.1f} s → "
               f"{Path(args.output_dir) / 'summary.csv'}", file=sys.stderr)
-    for r in bad:
-        print(f"heatparam: {r['status']}: {r['input']}: {r['reason']}", file=sys.stderr)
+    for r in bad:  # the file named once (a reader's message names it already)
+        where = "" if r["input"] in r["reason"] else f"{r['input']}: "
+        print(f"heatparam: {r['status']}: {where}{to_cli_terms(r['reason'])}", file=sys.stderr)
     return 1 if bad else 0
 
 
