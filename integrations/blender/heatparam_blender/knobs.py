@@ -27,7 +27,7 @@ class Knob(NamedTuple):
 
 KNOBS: dict[str, Knob] = {k.name: k for k in (
     Knob("pack", "choice", "scale", "--pack", "true scale, or UVs in [0,1]²", ("scale", "texture")),
-    Knob("max_distortion", "float", 0.0, "--max-distortion", "chart distortion bound; 0 = automatic",
+    Knob("max_distortion", "float", 0.0, "--max-distortion", "chart distortion bound; 0 = auto (1.05)",
          low=0.0, high=100.0),
     Knob("max_charts", "int", 0, "--max-charts", "cap on the charts per part; 0 = none", low=0, high=10**6),
     Knob("padding", "float", 4.0, "--padding", "gutter between charts, pixels", low=0.0, high=1e4),
