@@ -29,6 +29,9 @@ def job(folder):
         os.kill(os.getpid(), signal.SIGSEGV)
     if kind == "sleep":
         time.sleep(60)
+    if kind == "modules":  # what the server had imported when it forked this job
+        pathlib.Path(folder, "out.txt").write_text(str("tabnanny" in sys.modules))
+        return
     pathlib.Path(folder, "out.txt").write_text(str(os.getppid()))
 
 serve(job)
@@ -61,6 +64,16 @@ def test_jobs_report_their_exit(tmp_path, server):
     server.start(str(_folder(tmp_path, "crash")))
     assert server.ended(None) == -signal.SIGSEGV
     server.start(str(_folder(tmp_path, "ok")))  # the server goes on after a failed and a crashed job
+    assert server.ended(None) == 0 and server.alive()
+
+
+def test_a_job_gets_the_modules_it_asks_for_imported_by_the_server(tmp_path, server):
+    d = _folder(tmp_path, "modules")
+    server.start(str(d))
+    assert server.ended(None) == 0 and (d / "out.txt").read_text() == "False"
+    server.start(str(d), ("tabnanny",))
+    assert server.ended(None) == 0 and (d / "out.txt").read_text() == "True"
+    server.start(str(d), ("tabnanny", "no_such_module_anywhere"))  # asked again: once per server; a bad one ignored
     assert server.ended(None) == 0 and server.alive()
 
 

@@ -343,9 +343,9 @@ class _Child:
 class _Forked:
     """A job forked by this worker thread's warm job server (``job_server``)."""
 
-    def __init__(self, server: JobServer, tmp: Path):
+    def __init__(self, server: JobServer, tmp: Path, modules: tuple[str, ...]):
         self.server = server
-        self.pid = server.start(str(tmp))
+        self.pid = server.start(str(tmp), modules)
 
     def ended(self, timeout: float | None) -> int | None:
         return self.server.ended(timeout)
@@ -364,27 +364,42 @@ def dask_setup(worker) -> None:
             _SERVERS.prestart()
 
 
-def _start_job(tmp: Path) -> _Child | _Forked:
-    """The job on ``tmp``, forked by a warm job server where there is one, else a fresh subprocess."""
+def _modules(spec: dict) -> tuple[str, ...]:
+    """What the job of ``spec`` imports beyond the job server's preload: its formats' libraries, the preview's."""
+    wants = {"dxf": ("ezdxf",), "glb": ("trimesh",), "step": ("heatparam.formats.step",)}
+    mods = [m for f in spec["formats"] for m in wants.get(f, ())]
+    if spec["preview"]:
+        mods.append("matplotlib.pyplot")
+    if Path(spec["input"]).suffix.lower() in (".glb", ".gltf"):
+        mods.append("trimesh")
+    if spec["options"].get("pack") == "texture":
+        mods.append("heatparam.mesh.nest")
+    return tuple(dict.fromkeys(mods))
+
+
+def _start_job(tmp: Path, spec: dict) -> _Child | _Forked:
+    """The job of ``spec`` on ``tmp``, forked by a warm job server where there is one, else a fresh subprocess."""
     if not hasattr(os, "fork"):
         return _Child(tmp)
     server = None
     try:
         server = _SERVERS.take()
-        return _Forked(server, tmp)
+        return _Forked(server, tmp, _modules(spec))
     except OSError:
         if server is not None:
             server.close()
         return _Child(tmp)
 
 
-def _run_process(tmp: Path, timeout: float | None, mem_limit: int | None, t0: float) -> tuple[int, int, str | None]:
-    """Run :func:`_job_main` on ``tmp`` in a process of its own (output into ``tmp/log.txt``), killed past
-    ``mem_limit`` bytes of resident memory or ``timeout`` seconds since ``t0``; it never outlives this call.
+def _run_process(tmp: Path, spec: dict, timeout: float | None, mem_limit: int | None,
+                 t0: float) -> tuple[int, int, str | None]:
+    """Run :func:`_job_main` on ``tmp`` (its ``spec``) in a process of its own (output into ``tmp/log.txt``),
+    killed past ``mem_limit`` bytes of resident memory or ``timeout`` seconds since ``t0``; it never outlives this
+    call.
     Returns (its exit code, the peak resident bytes seen, why it was killed or None)."""
     import psutil
 
-    job = _start_job(tmp)
+    job = _start_job(tmp, spec)
     rc, peak, reason = None, 0, None
     try:
         ps = psutil.Process(job.pid)
@@ -459,7 +474,7 @@ def run_job(spec: dict) -> dict:
     timeout, mem_limit = spec["task_timeout"], spec["task_memory"] or _task_memory_default()
     try:
         (tmp / "spec.json").write_text(json.dumps(spec))
-        rc, peak, reason = _run_process(tmp, timeout, mem_limit, t0)
+        rc, peak, reason = _run_process(tmp, spec, timeout, mem_limit, t0)
         seconds = time.perf_counter() - t0
         peak_mb = round(peak / 2**20, 1) if peak else None
         if reason:

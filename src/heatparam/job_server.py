@@ -6,9 +6,10 @@ that mesh alone; but a fresh Python process pays about half a second of start an
 of a small mesh. A fork of a process that has already imported everything costs milliseconds. The server only
 imports: it never computes, because a library's thread pool (OpenMP, MKL) is not safe to fork once started.
 
-Protocol (text lines over the server's stdin / stdout): the worker writes a job's folder; the server forks a
-child that runs the job on that folder with its output in ``folder/log.txt``, answers ``pid <pid>``, and when the
-child has ended ``exit <code>`` (a negative code: the signal that ended it). The server exits at the end of its
+Protocol (text lines over the server's stdin / stdout): ``import <modules>`` asks the server to import what a job
+needs beyond :data:`PRELOAD` (answer ``imported``); ``job <folder>`` forks a child that runs the job on that folder
+with its output in ``folder/log.txt``, answered by ``pid <pid>`` and, when the child has ended, ``exit <code>`` (a
+negative code: the signal that ended it). The server exits at the end of its
 stdin, or with the worker (``PR_SET_PDEATHSIG``), and its children with it.
 """
 
@@ -26,13 +27,13 @@ import threading
 import traceback
 from collections.abc import Callable
 
-#: Imported once by the server, so that no child imports them: the pipeline and the libraries it imports lazily.
-#: STEP's OpenCascade is left out (a large import that only STEP outputs need: those children import it).
+#: Imported by every server before it says ready: what every job needs (the pipeline, its solvers, the readers).
+#: What only some jobs need (a format's library, the preview's pyplot) a job asks for (:meth:`JobServer.start`),
+#: once per server, so that a batch of plain meshes does not wait for them.
 PRELOAD = ("heatparam.unwrap", "heatparam.pipeline", "heatparam.pipeline.atlas_stage", "heatparam.formats.exporters",
            "heatparam.formats.dxf", "heatparam.formats.svg", "heatparam.formats.preview", "heatparam.formats.readers",
            "heatparam.formats.outputs", "heatparam.refine", "heatparam.fill", "heatparam.heat", "scipy.sparse.linalg",
-           "scipy.spatial", "igl", "gpytoolbox", "cholespy", "pypardiso", "ezdxf", "matplotlib.pyplot",
-           "matplotlib.path", "meshio", "trimesh", "numba", "heatparam.mesh.nest")
+           "scipy.spatial", "igl", "gpytoolbox", "cholespy", "pypardiso", "matplotlib.path", "meshio")
 
 
 def die_with_parent() -> None:  # pragma: no cover - runs in a child process
@@ -46,17 +47,25 @@ def serve(job: Callable[[str], None]) -> None:  # pragma: no cover - the server 
     """The server's loop (module docstring): preload, say ``ready``, then fork ``job(folder)`` for each line."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the children and the batch, not the server
     os.environ.setdefault("MPLBACKEND", "Agg")
-    for name in PRELOAD:
-        with contextlib.suppress(Exception):
-            importlib.import_module(name)
+    _import(PRELOAD)
     _say("ready")
     while line := sys.stdin.readline():
+        if line.startswith("import "):  # modules a job asks for, imported here once rather than in each child
+            _import(line.split()[1:])
+            _say("imported")
+            continue
         pid = os.fork()
         if pid == 0:
-            _child(job, line.rstrip("\n"))
+            _child(job, line.rstrip("\n").removeprefix("job "))
         _say(f"pid {pid}")
         _, status = os.waitpid(pid, 0)
         _say(f"exit {os.waitstatus_to_exitcode(status)}")
+
+
+def _import(names) -> None:  # pragma: no cover - server side
+    for name in names:
+        with contextlib.suppress(Exception):  # a module that will not import fails in the job, with its message
+            importlib.import_module(name)
 
 
 def _say(line: str) -> None:  # pragma: no cover - server side
@@ -132,23 +141,33 @@ class JobServer:
                                      stderr=subprocess.DEVNULL, preexec_fn=die_with_parent)
         self._buffer = b""
         self._ready = False
+        self._imported: set[str] = set()
 
     def alive(self) -> bool:
         return self.proc.poll() is None
 
-    def start(self, folder: str) -> int:
-        """Fork a job on ``folder``; returns its process id."""
+    def start(self, folder: str, modules: tuple[str, ...] = ()) -> int:
+        """Fork a job on ``folder``, the ``modules`` it needs imported in the server first; returns its process id."""
         if not self._ready:
             if self._line(timeout=120) != "ready":
                 self.close()
                 raise OSError("the job server did not start")
             self._ready = True
-        self.proc.stdin.write(folder.encode() + b"\n")
-        self.proc.stdin.flush()
+        wanted = [m for m in modules if m not in self._imported]
+        if wanted:
+            self._send("import " + " ".join(wanted))
+            if self._line(timeout=120) != "imported":
+                raise OSError("the job server stopped")
+            self._imported.update(wanted)
+        self._send("job " + folder)
         answer = self._line(timeout=60)
         if not answer or not answer.startswith("pid "):
             raise OSError("the job server stopped")
         return int(answer.split()[1])
+
+    def _send(self, line: str) -> None:
+        self.proc.stdin.write(line.encode() + b"\n")
+        self.proc.stdin.flush()
 
     def ended(self, timeout: float | None) -> int | None:
         """The running job's exit code once it has ended (waiting up to ``timeout`` seconds, None: until then);
