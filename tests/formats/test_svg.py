@@ -112,6 +112,13 @@ def test_strain_map(tmp_path):
     rgb = img[..., :3].astype(int)
     coloured = (img[..., 3] > 0) & (np.ptp(rgb, axis=2) > 40)  # saturated pixels (viridis), not grey/white
     assert coloured.mean() > 0.2
+    # the legend's top is the preview's (one scale for the two pictures of a map)
+    from heatparam.formats.pattern import build_pattern, face_iso
+    from heatparam.formats.preview import distortion_range
+
+    top = [t.text for t in root.iterfind(".//s:g[@id='legend']/s:text", NS) if t.text.endswith("+")]
+    iso = face_iso(build_pattern(*m.arrays), m.V)
+    assert top == [f"{distortion_range(iso):.3f}+"]
 
 
 def _text_boxes(svg_path):

@@ -23,6 +23,7 @@ import numpy as np
 from heatparam.formats.dxf import text_height
 from heatparam.formats.labels import GLYPH_WIDTH, Labels, place_labels
 from heatparam.formats.pattern import Pattern, face_iso, sheet_notes
+from heatparam.formats.preview import distortion_range
 from heatparam.formats.units import svg_length, uv_unit
 
 STYLE = """
@@ -54,7 +55,7 @@ def write_svg(path: str | os.PathLike, pattern: Pattern, units: str = "mm", titl
     V : (n,3) float64 the mesh's vertices, needed for ``strain_map``.
     strain_map : fill faces by isometric distortion max(sigma1, 1/sigma2) (viridis, flipped faces red) and draw
         a legend.
-    vmax : top of the colour scale (default: the 99th area percentile clipped to [1.01, 2]).
+    vmax : top of the colour scale (default: the preview's, ``preview.distortion_range``).
     texture : the texture's size in pixels when the pattern's UVs are texture space ([0,1]²): the SVG is that many
         pixels across per UV unit, and its notes and chart summaries say texture space instead of ``units``.
 
@@ -196,8 +197,8 @@ def _strain_group(pattern: Pattern, V, tr, vmax, th, W, margin, sw) -> list[str]
 
     iso = face_iso(pattern, V)
     finite = np.isfinite(iso)
-    if vmax is None:
-        vmax = float(np.clip(np.percentile(iso[finite], 99), 1.01, 2.0)) if finite.any() else 2.0
+    if vmax is None:  # the preview's scale: the two pictures of one map read alike
+        vmax = distortion_range(iso)
     cmap = matplotlib.colormaps["viridis"]
     t = np.clip((np.where(finite, iso, vmax) - 1.0) / (vmax - 1.0), 0, 1)
     rgb = (cmap(t)[:, :3] * 255).round().astype(int)
