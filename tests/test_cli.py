@@ -90,7 +90,7 @@ def test_demo(tmp_path):
     report = json.loads((tmp_path / "demo" / "demo-report.json").read_text())
     start = report["method"]["refine"]["start"]
     assert report["method"]["geodesics"] in ("landmarks", "all-pairs") and start["layout"] == "conformal"
-    assert "the heat geodesics and MDS run" in DEMO_DESCRIPTION and "the conformal one wins" in DEMO_DESCRIPTION
+    assert "heat geodesics and MDS" in DEMO_DESCRIPTION and "the conformal one wins" in DEMO_DESCRIPTION
 
 
 def _help(command: str, columns: int, monkeypatch) -> str:

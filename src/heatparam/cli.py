@@ -108,11 +108,10 @@ BATCH_EXAMPLES = """examples:
 
 Rerun the same command to resume (--force redoes all). Each pipeline option at length: docs/options.md."""
 DEMO_DESCRIPTION = (
-    "Unwrap a generated scan-like part (a noisy cylinder patch with two holes, in mm) and write OBJ, DXF, SVG "
-    "(strain map), STEP, the report and the preview. The conformal layout is not near-isometric there, so the fill, "
-    "the heat geodesics and MDS run, and the MDS layout competes with the conformal one for the refinement's start: "
-    "the lower-energy one starts (on this part the conformal one wins). stderr says which stages ran and which "
-    "start won.")
+    "Flatten a generated scan-like part (a 240 x 180 mm cylinder patch with two holes and scanner noise) and write "
+    "its OBJ, DXF, SVG (strain map), STEP, report and preview. The paper's stages run on it: a fill over the holes, "
+    "heat geodesics and MDS, whose layout competes with the conformal one to start the bijective polish (the "
+    "conformal one wins here). The log says which stages ran and why.")
 
 
 class _Help(argparse.RawDescriptionHelpFormatter):

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from heatparam.options import ISOMETRIC_START_EXCESS
+
 #: The demo's model unit (the generated part is 240 × 180 mm flat).
 UNITS = "mm"
 
@@ -39,8 +41,8 @@ def stages(report: dict) -> dict[str, str]:
         geo_s = "not run"
     else:
         conf = energy.get("conformal")
-        why = (f"the conformal layout is not near-isometric (energy {conf:.4f})" if conf is not None
-               else "requested or needed")
+        why = (f"the conformal layout's energy {conf:.4f} (1 = isometry) is above the bar at which it starts alone, "
+               f"1 + {ISOMETRIC_START_EXCESS:g}" if conf is not None else "requested or needed")
         geo_s = f"ran ({geo}; MDS): {why}"
     layout = start.get("layout")
     if layout is None:
