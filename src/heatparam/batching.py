@@ -403,7 +403,7 @@ def _run_process(tmp: Path, spec: dict, timeout: float | None, mem_limit: int | 
     rc, peak, reason = None, 0, None
     try:
         ps = psutil.Process(job.pid)
-        while (rc := job.ended(POLL_S)) is None:
+        while rc is None:  # the limits checked before each wait: a job forked warm can end within one
             with contextlib.suppress(psutil.Error):
                 rss = ps.memory_info().rss
                 peak = max(peak, rss)
@@ -415,6 +415,7 @@ def _run_process(tmp: Path, spec: dict, timeout: float | None, mem_limit: int | 
                 os.kill(job.pid, signal.SIGKILL)
                 rc = job.ended(None)
                 break
+            rc = job.ended(POLL_S)
     finally:
         if rc is None:  # an exception here (the task cancelled): never leave the mesh running
             with contextlib.suppress(OSError):
