@@ -271,6 +271,7 @@ def _add_demo(sub) -> None:
 
 
 def cmd_unwrap(args: argparse.Namespace) -> int:
+    from heatparam.progress import print_warning
     from heatparam.unwrap import plan, unwrap_planned
 
     plans = plan(args.output, args.report, args.preview, inputs=(args.input,))
@@ -283,8 +284,7 @@ def cmd_unwrap(args: argparse.Namespace) -> int:
     for flag, used, where in (("--sheet", args.sheet, ("dxf", "svg")), ("--strain-map", args.strain_map, ("svg",)),
                               ("--fit-tolerance", args.fit_tolerance, ("step",))):
         if used and not formats & set(where):
-            print(f"heatparam: warning: {flag} applies to {' and '.join('.' + w for w in where)} outputs only "
-                  "(none requested)", file=sys.stderr)
+            print_warning(f"{flag} applies to {' and '.join('.' + w for w in where)} outputs only (none requested)")
     opts = make_options(progress=not args.quiet, **{o.name: getattr(args, o.name) for o in cli_options()})
     unwrap_planned(args.input, plans, options=opts, quiet=args.quiet, units=args.units, sheet=sheet,
                    strain_map=args.strain_map, fit_tolerance=args.fit_tolerance)
@@ -295,6 +295,7 @@ def cmd_geodesics(args: argparse.Namespace) -> int:
     from heatparam.formats import load_mesh, save_npy
     from heatparam.formats.outputs import plan_outputs
     from heatparam.heat import geodesic_distances
+    from heatparam.progress import print_warning
 
     out = plan_outputs([(args.output, {"npy"})], inputs=(args.input,))[0].path
     sources = []
@@ -306,7 +307,7 @@ def cmd_geodesics(args: argparse.Namespace) -> int:
     V, F = load_mesh(args.input)
     D, warning = geodesic_distances(V, F, sources, args.time_step, args.t_coef, args.solver)
     if warning:
-        print(f"heatparam: warning: {to_cli_terms(warning)}", file=sys.stderr)
+        print_warning(warning)
     from heatparam import interrupt
 
     with interrupt.deferred():

@@ -81,6 +81,10 @@ class Progress:
                     mininterval=0.5, delay=1.0, leave=False)
 
     def warn(self, message: str) -> None:
-        """A warning on the terminal, in command-line terms (``--seams none``; the report keeps the API's)."""
         if self.enabled:
-            print(f"heatparam: warning: {to_cli_terms(message)}", file=sys.stderr, flush=True)
+            print_warning(message)
+
+
+def print_warning(message: str) -> None:
+    """A warning on the terminal, in command-line terms (``--seams none``; the report keeps the API's)."""
+    print(f"heatparam: warning: {to_cli_terms(message)}", file=sys.stderr, flush=True)

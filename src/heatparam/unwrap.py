@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 from heatparam.formats.units import DEFAULT_UNITS
+from heatparam.progress import print_warning
 
 
 def plan(outputs, report=None, preview=None, inputs=()) -> list:
@@ -49,9 +50,10 @@ def write_outputs(V, F, result, plans, *, units: str = DEFAULT_UNITS, sheet=None
                 print(f"heatparam: write {pl.path.name}: fitting B-spline faces ...", file=sys.stderr, flush=True)
             t0 = time.perf_counter()
             info = BY_NAME[pl.format].write(tmp, run)
-            report["timings_s"][f"write {pl.format}"] = round(time.perf_counter() - t0, 4)
+            dt = time.perf_counter() - t0
+            report["timings_s"][f"write {pl.format}"] = round(dt, 4)
             if not quiet:
-                print(f"heatparam: write {pl.path.name}: {time.perf_counter() - t0:.2f} s", file=sys.stderr)
+                print(f"heatparam: write {pl.path.name}: {dt:.2f} s", file=sys.stderr)
             written.append({"path": str(pl.path), **(info if isinstance(info, dict) else {"format": pl.format})})
             return info
         return write
@@ -63,7 +65,7 @@ def write_outputs(V, F, result, plans, *, units: str = DEFAULT_UNITS, sheet=None
         commit_outputs([(pl.path, recorded(pl)) for pl in order])
     if not quiet:
         for w in report["warnings"][known:]:  # what writing found (a STEP face off its fit tolerance)
-            print(f"heatparam: warning: {w}", file=sys.stderr)
+            print_warning(w)
         m = report["metrics"]
         names = ", ".join(str(pl.path) for pl in plans)
         print(f"wrote {names} ({units}): {m['flips']} flipped, {m['boundary_crossings']} boundary crossings, "
@@ -139,7 +141,7 @@ def unwrap_planned(input, plans, *, options=None, quiet: bool = True, units: str
     sized = given or opts.pack == "texture"
     notes = [n for n in (None if sized else _assumed_units(V, F), left_out) if n]
     for note in notes if opts.progress else []:
-        print(f"heatparam: warning: {note}", file=sys.stderr)
+        print_warning(note)
     result = parameterize(V, F, opts)
     result.report["input"] = str(input)
     result.report["units_assumed"] = not given
