@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import shutil
 import sys
@@ -59,31 +60,28 @@ def _parse_value(opt: Option):
     return parse
 
 
-def _positive(text: str, integer: bool = False) -> float:
-    """argparse ``type``: a positive finite number (``integer``: a whole number of at least 1)."""
-    what = "a whole number of at least 1" if integer else "a positive finite number"
+def _number(text: str, what: str, ok, integer: bool = False) -> float:
+    """argparse ``type``: ``text`` as an int (``integer``) or a float for which ``ok`` holds; else "expected
+    ``what``"."""
     try:
         value = int(text) if integer else float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
-    if not (value >= 1 if integer else 0 < value < float("inf")):
+    if not ok(value):
         raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
     return value
 
 
+def _positive(text: str) -> float:
+    return _number(text, "a positive finite number", lambda v: 0 < v < math.inf)
+
+
 def _nonnegative(text: str) -> float:
-    """argparse ``type``: a finite number of at least 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a finite number of at least 0, got {text!r}") from None
-    if not 0 <= value < float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a finite number of at least 0, got {text!r}")
-    return value
+    return _number(text, "a finite number of at least 0", lambda v: 0 <= v < math.inf)
 
 
 def _positive_int(text: str) -> int:
-    return int(_positive(text, integer=True))
+    return _number(text, "a whole number of at least 1", lambda v: v >= 1, integer=True)
 
 
 #: Where the options' one-line help starts (columns): at 100 columns the choice flags fit beside their help; on a
