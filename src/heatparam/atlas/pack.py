@@ -16,7 +16,7 @@ import numpy as np
 
 from heatparam.errors import HeatparamError
 from heatparam.mesh.nest import Grid, Piece, min_area_rotation, orientations
-from heatparam.mesh.planar import shelf_pack
+from heatparam.mesh.planar import covered_area, shelf_pack
 
 __all__ = ["min_area_rotation", "pack_charts"]
 
@@ -68,9 +68,7 @@ def _upright(uvs: list[np.ndarray], Fs: list[np.ndarray]) -> tuple[list[np.ndarr
         Q = Q - Q.min(axis=0)
         rot.append(Q)
         sizes[i] = Q.max(axis=0)
-        T = Q[Fs[i]]
-        e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
-        areas[i] = 0.5 * float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum())
+        areas[i] = covered_area(Q, Fs[i])
     return rot, sizes, areas
 
 
@@ -91,17 +89,11 @@ def _pack_scale(rot: list[np.ndarray], sizes: np.ndarray, areas: np.ndarray, gap
                  "efficiency": float(areas.sum() / max(w * h, 1e-300))}
 
 
-def _uv_area(P: np.ndarray, F: np.ndarray) -> float:
-    T = P[F]
-    e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
-    return 0.5 * float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum())
-
-
 class _TexturePack:
     """The charts nested in one ``resolution``² texture at one texel density (module docstring)."""
 
     def __init__(self, uvs: list[np.ndarray], Fs: list[np.ndarray], padding: float, resolution: int):
-        self.areas = np.array([_uv_area(P, F) for P, F in zip(uvs, Fs, strict=True)])
+        self.areas = np.array([covered_area(P, F) for P, F in zip(uvs, Fs, strict=True)])
         big = self.areas >= FINE_TURNS_FRACTION * self.areas.sum()
         self.pieces = [Piece(P, F, orientations(P, "fine" if b else "free"))
                        for P, F, b in zip(uvs, Fs, big, strict=True)]

@@ -25,7 +25,7 @@ import numpy as np
 
 from heatparam.errors import HeatparamError
 from heatparam.mesh.nest import Piece, SheetNester, orientations
-from heatparam.mesh.planar import polygon_area
+from heatparam.mesh.planar import covered_area, polygon_area
 from heatparam.options import GRAIN_RULES, NEST_TIME
 
 #: Gap between laid-out charts (and to the sheet's edge), as a fraction of the largest chart's bounding-box
@@ -467,9 +467,7 @@ def _sheet_use(pattern: Pattern, n_sheets: int) -> np.ndarray:
     """(s,) the fraction of each sheet's area covered by its charts' faces."""
     use = np.zeros(n_sheets)
     for c in pattern.charts if n_sheets else ():
-        T = pattern.uv[pattern.Fuv[c.faces]]
-        e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
-        use[c.sheet] += 0.5 * float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum())
+        use[c.sheet] += covered_area(pattern.uv, pattern.Fuv[c.faces])
     return use / (pattern.sheets[:, 2] * pattern.sheets[:, 3]) if n_sheets else use
 
 

@@ -21,6 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from heatparam.mesh.planar import covered_area
+
 __all__ = ["Grid", "Piece", "Placement", "SheetNester", "min_area_rotation", "orientations"]
 
 #: Pixels touched within this fraction of a pixel count as touched: rounding never loses a pixel a piece touches.
@@ -46,12 +48,6 @@ def min_area_rotation(P: np.ndarray) -> np.ndarray:
         if area < best - 1e-12 * abs(best if np.isfinite(best) else 1):
             best, R_best = area, R[i] if ext[i, 0] >= ext[i, 1] else np.array([[0, 1], [-1, 0]]) @ R[i]
     return R_best
-
-
-def _area2(P: np.ndarray, T: np.ndarray) -> float:
-    """The area covered by triangles T (t,3) over P (n,2) (each counted positive)."""
-    e1, e2 = P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]
-    return 0.5 * float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum())
 
 
 def _quarter_turns(R: np.ndarray) -> list[np.ndarray]:
@@ -327,7 +323,7 @@ class SheetNester:
         self.gh, self.gw = int(math.floor(H / self.px)), int(math.floor(W / self.px))
         self.gap_px = max(int(math.ceil(gap / self.px - 1e-9)), 1)
         self.shapes = [p.shapes(1.0 / self.px, self.gap_px) for p in pieces]
-        self.areas = np.array([abs(_area2(p.P, p.T)) for p in pieces])
+        self.areas = np.array([covered_area(p.P, p.T) for p in pieces])
         self.sheet_area = W * H
 
     def too_big(self) -> list[int]:

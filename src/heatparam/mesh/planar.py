@@ -11,6 +11,11 @@ def signed_areas(P: np.ndarray, T: np.ndarray) -> np.ndarray:
     return 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
 
 
+def covered_area(P: np.ndarray, T: np.ndarray) -> float:
+    """The area the triangles T (t,3) over P (n,2) cover, each counted positive (a layout's UV area)."""
+    return float(np.abs(signed_areas(P, T)).sum())
+
+
 def polygon_area(loop: np.ndarray) -> float:
     """Signed area of the closed polygon ``loop`` (k,2) (shoelace); positive = counter-clockwise."""
     x, y = loop[:, 0], loop[:, 1]
