@@ -365,9 +365,11 @@ def dask_setup(worker) -> None:
 
 
 def _modules(spec: dict) -> tuple[str, ...]:
-    """What the job of ``spec`` imports beyond the job server's preload: its formats' libraries, the preview's."""
-    wants = {"dxf": ("ezdxf",), "glb": ("trimesh",), "step": ("heatparam.formats.step",)}
-    mods = [m for f in spec["formats"] for m in wants.get(f, ())]
+    """What the job of ``spec`` imports beyond the job server's preload: its formats' writers and the libraries
+    they need (``formats.exporters``), the preview's pyplot, a glTF input's reader, the texture nesting."""
+    from heatparam.formats.exporters import BY_NAME
+
+    mods = [m for f in spec["formats"] for m in (BY_NAME[f].module, BY_NAME[f].requires) if m]
     if spec["preview"]:
         mods.append("matplotlib.pyplot")
     if Path(spec["input"]).suffix.lower() in (".glb", ".gltf"):

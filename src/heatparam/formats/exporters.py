@@ -185,7 +185,7 @@ EXPORTERS = (
     Exporter("obj", (".obj",), "heatparam.formats.uvobj", _obj, map=True, batch=True),
     Exporter("json", (".json",), "heatparam.formats.files", _report, batch=True),  # the report, always written
     Exporter("ply", (".ply",), "heatparam.formats.meshuv", _ply, map=True, batch=True),
-    Exporter("glb", (".glb",), "heatparam.formats.meshuv", _glb, map=True, batch=True),
+    Exporter("glb", (".glb",), "heatparam.formats.meshuv", _glb, "trimesh", map=True, batch=True),
     Exporter("dxf", (".dxf",), "heatparam.formats.dxf", _dxf, "ezdxf", map=True, batch=True, pattern=True),
     Exporter("svg", (".svg",), "heatparam.formats.svg", _svg, map=True, batch=True, pattern=True),
     Exporter("step", (".step", ".stp"), "heatparam.formats.step", _step, "OCP", map=True, batch=True),
