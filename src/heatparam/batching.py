@@ -341,7 +341,7 @@ class _Child:
 
 
 class _Forked:
-    """A job forked by this worker thread's warm job server (``job_server``)."""
+    """A job forked by one of this worker's warm job servers (``job_server``)."""
 
     def __init__(self, server: JobServer, tmp: Path, modules: tuple[str, ...]):
         self.server = server

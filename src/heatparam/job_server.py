@@ -1,5 +1,5 @@
-"""A warm job server for the batch: one long-lived process per Dask worker thread, with heatparam and its libraries
-imported, that forks one child process per mesh.
+"""Warm job servers for the batch: long-lived processes kept by each Dask worker (one per job it runs at once), with
+heatparam and its libraries imported, each forking one child process per mesh.
 
 Why: each mesh runs in a process of its own, so that it can be held to a time and a memory limit and a crash loses
 that mesh alone; but a fresh Python process pays about half a second of start and imports, more than the whole work
