@@ -157,10 +157,12 @@ def _without_point_faces(F):
     so a file keeps its surface; a file of nothing else is left to the pipeline's refusal."""
     import numpy as np
 
+    from heatparam.mesh.topology import repeated_vertex_faces
+
     F = np.asarray(F)
     if F.ndim != 2 or F.shape[1] != 3 or F.dtype.kind not in "iu":
         return F, None
-    rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
+    rep = repeated_vertex_faces(F)
     if not rep.any() or rep.all():
         return F, None
     return F[~rep], (f"{int(rep.sum())} faces repeat a vertex index (segments or points, no surface): left out of "

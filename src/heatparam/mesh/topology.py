@@ -77,6 +77,11 @@ def degenerate_faces(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return 2 * face_areas(V, F) <= DEGENERATE_AREA_REL * longest2
 
 
+def repeated_vertex_faces(F: np.ndarray) -> np.ndarray:
+    """(m,) bool: faces that name a vertex twice (a segment or a point, not a triangle)."""
+    return (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
+
+
 def _half_edges(F: np.ndarray) -> np.ndarray:
     return np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
 

@@ -19,6 +19,7 @@ from heatparam.mesh.topology import (
     face_areas,
     loop_length,
     loops_outer_first,
+    repeated_vertex_faces,
     sort_with_order,
     unique_ints,
 )
@@ -151,7 +152,7 @@ def check_arrays(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         raise MeshError(
             f"face indices out of range (found {int(F.min())}..{int(F.max())} for {n} vertices) — the file is corrupt"
         )
-    rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
+    rep = repeated_vertex_faces(F)
     if rep.any():
         raise MeshError(
             f"{int(rep.sum())} faces repeat a vertex index (first: face {int(np.argmax(rep))})"
