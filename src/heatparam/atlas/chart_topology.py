@@ -61,16 +61,15 @@ class Topology:
             self._double = bool(((p == q) & (p >= 0)).any())
         return self._double
 
-    def lists(self) -> tuple[list, list, list, list, list]:
-        """For the region growing's loop, as Python lists, made once: F, normals, areas, and per face its three
-        neighbours across its edges (m where there is none: a sentinel row) and the same with the creases' m."""
-        if not hasattr(self, "_lists"):
+    def neighbours(self) -> tuple[np.ndarray, np.ndarray]:
+        """(m,3) int64 each face's neighbours across its edges (m where there is none: a sentinel row) and the same
+        with m across the creases too, for the region growing, made once."""
+        if not hasattr(self, "_neighbours"):
             m = len(self.F)
             nb = np.where(self.opp >= 0, self.opp // 3, m)
             cross = np.where(self.crease, m, nb)
-            self._lists = (self.F.tolist(), self.normals.tolist(), self.areas.tolist(), nb.reshape(m, 3).tolist(),
-                           cross.reshape(m, 3).tolist())
-        return self._lists
+            self._neighbours = (nb.reshape(m, 3), cross.reshape(m, 3))
+        return self._neighbours
 
     def vertex_faces(self) -> tuple[np.ndarray, np.ndarray]:
         """The faces around each vertex, made once: (faces, starts), vertex w's are ``faces[starts[w]:starts[w+1]]``."""

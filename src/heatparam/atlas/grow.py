@@ -9,7 +9,6 @@ new, or along two edges). Faces left over seed further regions. Region borders a
 from __future__ import annotations
 
 import functools
-import heapq
 import math
 
 import numpy as np
@@ -17,6 +16,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 
 from heatparam.atlas.chart_topology import Topology, glue_inside
+from heatparam.compiled import compiled
 
 __all__ = ["DEFAULT_CONE", "farthest_seeds", "grow", "halves"]
 
@@ -64,108 +64,142 @@ def farthest_seeds(topo: Topology, faces: np.ndarray, k: int, seed: int) -> np.n
 def grow(topo: Topology, faces: np.ndarray, cone_deg: float, target_faces: int, seed: int = 0) -> list[np.ndarray]:
     """Normal-cone region growing over ``faces`` (module docstring), about ``target_faces`` faces per region;
     each returned face array (ascending) is a topological disk."""
-    g = _Growth(topo, faces, cone_deg)
+    m = len(topo.F)
     k = max(1, int(np.ceil(len(faces) / max(target_faces, 1))))
-    seeds = farthest_seeds(topo, faces, k, seed).tolist()
-    while seeds:
-        g.spread(g.plant(seeds))
-        seeds = g.leftover()  # faces the disk rule or the cone left: one seed each round, no distance field
-    lab = np.asarray(g.label[:len(topo.F)], dtype=np.int64)
+    seeds = farthest_seeds(topo, faces, k, seed)
+    order = np.sort(faces)
+    lab = np.full(m + 1, -2, dtype=np.int64)  # -1 free, -2 not in the set; row m: the sentinel neighbour
+    lab[order] = -1
+    nb, cross = topo.neighbours()
+    vf, starts = topo.vertex_faces()
+    regions = _grow_regions(topo.F, topo.normals, topo.areas, nb, cross, vf, starts, lab, order,
+                            seeds.astype(np.int64), float(np.cos(np.radians(cone_deg))))
+    lab = lab[:m]
     _smooth(topo, lab, faces)
     mine = np.flatnonzero(lab >= 0)  # each region's faces ascending (a stable sort of the face order)
     by = mine[np.argsort(lab[mine], kind="stable")]
-    ends = np.cumsum(np.bincount(lab[mine], minlength=len(g.unit)))
+    ends = np.cumsum(np.bincount(lab[mine], minlength=regions))
     return [r for r in np.split(by, ends[:-1]) if len(r)]
 
 
-class _Growth:
-    """The regions growing over a set of faces: per face its region (``label``: -1 free, -2 not in the set), per
-    region its area-weighted normal sum, unit mean normal and vertices.
+@compiled()
+def _heap_push(heap, key, n, c, g, r):  # pragma: no cover - compiled
+    """Push (c, g, r) on the binary min-heap of n entries (``heap`` (cap,) costs, ``key`` (cap,2) face and region;
+    ordered as the tuples (c, g, r)); returns the arrays (doubled when full) and n + 1."""
+    if n == len(heap):
+        heap = np.concatenate((heap, np.empty_like(heap)))
+        key = np.concatenate((key, np.empty_like(key)))
+    i = n
+    while i > 0:
+        p = (i - 1) // 2
+        if (heap[p], key[p, 0], key[p, 1]) <= (c, g, r):
+            break
+        heap[i], key[i, 0], key[i, 1] = heap[p], key[p, 0], key[p, 1]
+        i = p
+    heap[i], key[i, 0], key[i, 1] = c, g, r
+    return heap, key, n + 1
 
-    On Python lists and floats (the same arithmetic, in the same order, as numpy's on 3-vectors: 2.2x faster than
-    on numpy scalars); each region's unit mean normal is kept from one growth to the next."""
 
-    def __init__(self, topo: Topology, faces: np.ndarray, cone_deg: float):
-        self.F, self.nrm, self.areas, self.nb, self.cross = topo.lists()
-        self.cos_cone = float(np.cos(np.radians(cone_deg)))
-        order = np.sort(faces)
-        lab = np.full(len(topo.F) + 1, -2, dtype=np.int64)  # row m: the sentinel neighbour (never free)
-        lab[order] = -1
-        self.label = lab.tolist()
-        self.order = order.tolist()
-        self.nsum: list[list[float]] = []
-        self.unit: list[list[float]] = []  # nsum[r] / |nsum[r]|
-        self.vmark: list[set] = []
-        self.nxt = 0  # leftovers are seeded in face order: every face before order[nxt] is assigned
+@compiled()
+def _heap_pop(heap, key, n):  # pragma: no cover - compiled
+    """Remove the least entry of the heap of n entries; returns its (c, g, r) and n - 1."""
+    c, g, r = heap[0], key[0, 0], key[0, 1]
+    n -= 1
+    lc, lg, lr = heap[n], key[n, 0], key[n, 1]  # the last entry sinks from the root
+    i = 0
+    while True:
+        j = 2 * i + 1
+        if j >= n:
+            break
+        if j + 1 < n and (heap[j + 1], key[j + 1, 0], key[j + 1, 1]) < (heap[j], key[j, 0], key[j, 1]):
+            j += 1
+        if (lc, lg, lr) <= (heap[j], key[j, 0], key[j, 1]):
+            break
+        heap[i], key[i, 0], key[i, 1] = heap[j], key[j, 0], key[j, 1]
+        i = j
+    heap[i], key[i, 0], key[i, 1] = lc, lg, lr
+    return c, g, r, n
 
-    def leftover(self) -> list[int]:
-        """The first free face, as the next round's one seed ([] when none is left)."""
-        order, label = self.order, self.label
-        while self.nxt < len(order) and label[order[self.nxt]] != -1:
-            self.nxt += 1
-        return [order[self.nxt]] if self.nxt < len(order) else []
 
-    def plant(self, seeds: list[int]) -> list:
-        """A new region at each free seed face; the heap of its neighbours' costs (1 - cos to its normal)."""
-        heap: list = []
-        label, nrm, cross = self.label, self.nrm, self.cross
-        for s in seeds:
-            if label[s] != -1:
-                continue
-            r = len(self.unit)
-            label[s] = r
-            self.nsum.append([x * self.areas[s] for x in nrm[s]])
-            ns = self.nsum[r]
-            length = math.sqrt(ns[0] * ns[0] + ns[1] * ns[1] + ns[2] * ns[2])
-            # a zero-area seed: its own (a neighbour's, Topology.build) normal, until a face with an area joins
-            self.unit.append([ns[0] / length, ns[1] / length, ns[2] / length] if length > 1e-300 else list(nrm[s]))
-            self.vmark.append(set(self.F[s]))
-            ns = nrm[s]
-            for o in cross[s]:
-                if label[o] == -1:
-                    no = nrm[o]
-                    heapq.heappush(heap, (1.0 - (no[0] * ns[0] + no[1] * ns[1] + no[2] * ns[2]), o, r))
-        return heap
+@compiled(_heap_push)
+def _plant(s, r, nrm, areas, cross, label, nsum, unit, heap, key, n):  # pragma: no cover - compiled
+    """Region r at the free seed face s (its normal sum and unit mean normal), its neighbours' costs (1 - cos to
+    its normal) on the heap; returns the heap and its size."""
+    label[s] = r
+    for d in range(3):
+        nsum[r, d] = nrm[s, d] * areas[s]
+    x, y, z = nsum[r, 0], nsum[r, 1], nsum[r, 2]
+    length = math.sqrt(x * x + y * y + z * z)
+    for d in range(3):  # a zero-area seed: its own normal (a neighbour's, Topology.build) until a face with an
+        unit[r, d] = nsum[r, d] / length if length > 1e-300 else nrm[s, d]  # area joins
+    for j in range(3):
+        o = cross[s, j]
+        if label[o] == -1:
+            c = 1.0 - (nrm[o, 0] * nrm[s, 0] + nrm[o, 1] * nrm[s, 1] + nrm[o, 2] * nrm[s, 2])
+            heap, key, n = _heap_push(heap, key, n, c, o, r)
+    return heap, key, n
 
-    def spread(self, heap: list) -> None:
-        """Grow the regions from ``heap``, cheapest face first, within the cone and the disk rule."""
-        push, pop = heapq.heappush, heapq.heappop
-        label, nrm, cross, nb, Fl, unit, nsum = self.label, self.nrm, self.cross, self.nb, self.F, self.unit, self.nsum
-        while heap:
-            cost, g, r = pop(heap)
+
+@compiled()
+def _disk_rule(g, r, F, nb, vf, starts, label):  # pragma: no cover - compiled
+    """Whether face g may join region r: along two edges, or along one with its third vertex new to the region."""
+    on = 0
+    opposite = -1
+    for j in range(3):
+        if label[nb[g, j]] == r:
+            on += 1
+            opposite = F[g, (j + 2) % 3]  # the vertex opposite edge j
+    if on == 2:
+        return True
+    if on != 1:
+        return False
+    for i in range(starts[opposite], starts[opposite + 1]):
+        if label[vf[i]] == r:
+            return False
+    return True
+
+
+@compiled(_heap_push, _heap_pop, _plant, _disk_rule)
+def _grow_regions(F, nrm, areas, nb, cross, vf, starts, label, order, seeds, cos_cone):  # pragma: no cover
+    """Grow regions from ``seeds``, then from the first free face of ``order`` while one is left, cheapest face
+    first, within the cone and the disk rule; ``label`` (m+1,) filled in place. Returns the number of regions."""
+    nsum = np.zeros((len(order) + 1, 3))
+    unit = np.zeros((len(order) + 1, 3))  # nsum[r] / |nsum[r]|
+    heap, key, n = np.empty(1024), np.empty((1024, 2), dtype=np.int64), 0
+    regions, nxt, todo = 0, 0, seeds
+    while len(todo):
+        for s in todo:
+            if label[s] == -1:
+                heap, key, n = _plant(s, regions, nrm, areas, cross, label, nsum, unit, heap, key, n)
+                regions += 1
+        while n:
+            cost, g, r, n = _heap_pop(heap, key, n)
             if label[g] != -1:
                 continue
-            nr = unit[r]
-            ng = nrm[g]
-            c = 1.0 - (ng[0] * nr[0] + ng[1] * nr[1] + ng[2] * nr[2])
+            c = 1.0 - (nrm[g, 0] * unit[r, 0] + nrm[g, 1] * unit[r, 1] + nrm[g, 2] * unit[r, 2])
             if c > cost + 1e-12:  # stale priority: requeue with the current one
-                push(heap, (c, g, r))
+                heap, key, n = _heap_push(heap, key, n, c, g, r)
                 continue
-            if 1.0 - c < self.cos_cone:
-                continue
-            # disk rule: joined along two edges, or along one with its third vertex new to the region
-            f0, f1, f2 = nb[g]
-            on0, on1, on2 = label[f0] == r, label[f1] == r, label[f2] == r
-            shared = on0 + on1 + on2
-            vs = Fl[g]
-            if shared == 1:
-                if vs[2 if on0 else 0 if on1 else 1] in self.vmark[r]:  # the vertex opposite the shared edge
-                    continue
-            elif shared != 2:
+            if 1.0 - c < cos_cone or not _disk_rule(g, r, F, nb, vf, starts, label):
                 continue
             label[g] = r
-            a = self.areas[g]
-            ns = nsum[r]
-            x, y, z = ns[0] + ng[0] * a, ns[1] + ng[1] * a, ns[2] + ng[2] * a
-            nsum[r] = [x, y, z]
+            nr0, nr1, nr2 = unit[r, 0], unit[r, 1], unit[r, 2]  # the costs below: to the normal before g joined
+            x = nsum[r, 0] + nrm[g, 0] * areas[g]
+            y = nsum[r, 1] + nrm[g, 1] * areas[g]
+            z = nsum[r, 2] + nrm[g, 2] * areas[g]
+            nsum[r, 0], nsum[r, 1], nsum[r, 2] = x, y, z
             length = math.sqrt(x * x + y * y + z * z)
             if length > 1e-300:  # (else: zero-area faces only so far, the seed's normal stays)
-                unit[r] = [x / length, y / length, z / length]
-            self.vmark[r].update(vs)
-            for o in cross[g]:
+                unit[r, 0], unit[r, 1], unit[r, 2] = x / length, y / length, z / length
+            for j in range(3):
+                o = cross[g, j]
                 if label[o] == -1:
-                    no = nrm[o]
-                    push(heap, (1.0 - (no[0] * nr[0] + no[1] * nr[1] + no[2] * nr[2]), o, r))
+                    co = 1.0 - (nrm[o, 0] * nr0 + nrm[o, 1] * nr1 + nrm[o, 2] * nr2)
+                    heap, key, n = _heap_push(heap, key, n, co, o, r)
+        while nxt < len(order) and label[order[nxt]] != -1:  # what the disk rule or the cone left: one seed a
+            nxt += 1  # round, in face order, no distance field
+        todo = order[nxt:nxt + 1]
+    return regions
 
 
 def halves(topo: Topology, faces: np.ndarray, glued: np.ndarray, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:

@@ -14,7 +14,8 @@ from fractions import Fraction
 
 import numpy as np
 
-from heatparam.mesh.topology import degenerate_faces, pairs_in_groups
+from heatparam.compiled import compiled
+from heatparam.mesh.topology import degenerate_faces
 
 __all__ = ["count_overlaps", "folded_zero_area", "overlapping_pairs", "uv_degenerate_faces"]
 
@@ -67,46 +68,106 @@ def folded_zero_area(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarr
     return int((s == -way).sum()) if way else 0
 
 
-def _candidates(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """(p,2) pairs i < j whose closed bounding boxes intersect (uniform grid broad phase), each once, in no
-    particular order."""
-    m = len(lo)
-    if m < 2:
-        return np.zeros((0, 2), dtype=np.int64)
-    ext = hi - lo
-    cell = max(float(np.median(ext.max(axis=1))) * 2.0, 1e-300)
-    origin = lo.min(axis=0)
-    c0 = np.floor((lo - origin) / cell).astype(np.int64)
-    c1 = np.floor((hi - origin) / cell).astype(np.int64)
-    span = (c1 - c0 + 1)
-    count = span[:, 0] * span[:, 1]
-    tri = np.repeat(np.arange(m), count)
-    offs = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    sx = np.repeat(span[:, 0], count)
-    cx = np.repeat(c0[:, 0], count) + offs % sx
-    cy = np.repeat(c0[:, 1], count) + offs // sx
-    ny = int(cy.max()) + 1
-    key = cx * ny + cy
-    order = np.lexsort((tri, key))
-    key, tri = key[order], tri[order]
-    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    sizes = np.diff(np.r_[starts, len(key)])
-    st, sz = starts[sizes > 1], sizes[sizes > 1]
-    if not len(st):
-        return np.zeros((0, 2), dtype=np.int64)
-    # every pair of positions p < q within each cell's run of the sorted list, all cells at once
-    first, second = pairs_in_groups(np.arange(len(tri)), st, sz).T
-    a, b, cell = tri[first], tri[second], key[first]
-    # each pair once: in the cell of its boxes' common lower-left corner (both boxes cover that cell), where the
-    # boxes intersect at all
-    (cx0, cy0), (lx, ly), (hx, hy) = (np.ascontiguousarray(x.T) for x in (c0, lo, hi))  # columns: gathers 2x faster
-    keep = np.maximum(cx0[a], cx0[b]) * ny + np.maximum(cy0[a], cy0[b]) == cell
-    a, b = a[keep], b[keep]
-    keep = (lx[a] <= hx[b]) & (lx[b] <= hx[a]) & (ly[a] <= hy[b]) & (ly[b] <= hy[a])
-    return np.column_stack([a[keep], b[keep]])
+@compiled()
+def _box_pairs(lo, hi, cell):  # pragma: no cover - compiled
+    """(p,2) pairs i < j of the boxes [lo, hi] (m,2) that intersect (closed), each once: a uniform grid of ``cell``,
+    each pair found in the cell of its boxes' common lower-left corner (both boxes cover that cell)."""
+    m = lo.shape[0]
+    ox, oy = lo[:, 0].min(), lo[:, 1].min()
+    c0 = np.empty((m, 2), dtype=np.int64)
+    c1 = np.empty((m, 2), dtype=np.int64)
+    total = 0
+    for i in range(m):
+        c0[i, 0], c0[i, 1] = np.floor((lo[i, 0] - ox) / cell), np.floor((lo[i, 1] - oy) / cell)
+        c1[i, 0], c1[i, 1] = np.floor((hi[i, 0] - ox) / cell), np.floor((hi[i, 1] - oy) / cell)
+        total += (c1[i, 0] - c0[i, 0] + 1) * (c1[i, 1] - c0[i, 1] + 1)
+    ny = c1[:, 1].max() + 1
+    key = np.empty(total, dtype=np.int64)
+    box = np.empty(total, dtype=np.int64)
+    t = 0
+    for i in range(m):
+        for cx in range(c0[i, 0], c1[i, 0] + 1):
+            for cy in range(c0[i, 1], c1[i, 1] + 1):
+                key[t], box[t] = cx * ny + cy, i
+                t += 1
+    order = np.argsort(key)
+    out = np.empty((max(total, 16), 2), dtype=np.int64)
+    n, s = 0, 0
+    while s < total:
+        e = s
+        while e < total and key[order[e]] == key[order[s]]:
+            e += 1
+        for p in range(s, e):
+            for q in range(p + 1, e):
+                a, b = min(box[order[p]], box[order[q]]), max(box[order[p]], box[order[q]])
+                if max(c0[a, 0], c0[b, 0]) * ny + max(c0[a, 1], c0[b, 1]) != key[order[s]]:
+                    continue
+                if lo[a, 0] <= hi[b, 0] and lo[b, 0] <= hi[a, 0] and lo[a, 1] <= hi[b, 1] and lo[b, 1] <= hi[a, 1]:
+                    if n == len(out):
+                        out = np.concatenate((out, np.empty_like(out)))
+                    out[n, 0], out[n, 1] = a, b
+                    n += 1
+        s = e
+    return out[:n]
 
 
-def overlapping_pairs(uv: np.ndarray, Fuv: np.ndarray, chunk: int = 1_000_000) -> np.ndarray:
+@compiled()
+def _orient_sign(ax, ay, bx, by, cx, cy):  # pragma: no cover - compiled
+    """The sign of the orientation of (a, b, c) as :func:`_orient` finds it without exact arithmetic; 2 where the
+    float result is within its rounding error bound of zero (exact arithmetic must decide)."""
+    if (cx == ax and cy == ay) or (cx == bx and cy == by) or (ax == bx and ay == by):
+        return 0
+    left = (bx - ax) * (cy - ay)
+    right = (by - ay) * (cx - ax)
+    det = left - right
+    bound = _ERRBOUND * (abs(left) + abs(right))
+    if bound > 0 and abs(det) <= bound:
+        return 2
+    return 1 if det > 0 else -1 if det < 0 else 0
+
+
+@compiled(_orient_sign)
+def _pair_verdicts(T, pairs):  # pragma: no cover - compiled
+    """Per pair of counter-clockwise triangles T (t,3,2): 0 when an edge line of one has the other wholly on its
+    closed outer side (disjoint interiors), 1 when none has (they overlap), 2 when only exact arithmetic decides."""
+    out = np.empty(len(pairs), dtype=np.int8)
+    for i in range(len(pairs)):
+        verdict = 1
+        for side in range(2):
+            x, y = (pairs[i, 0], pairs[i, 1]) if side == 0 else (pairs[i, 1], pairs[i, 0])
+            for e in range(3):
+                f = (e + 1) % 3
+                worst = -1
+                for v in range(3):
+                    worst = max(worst, _orient_sign(T[x, e, 0], T[x, e, 1], T[x, f, 0], T[x, f, 1], T[y, v, 0],
+                                                    T[y, v, 1]))
+                if worst <= 0:
+                    verdict = 0
+                elif worst == 2 and verdict == 1:
+                    verdict = 2
+        out[i] = verdict
+    return out
+
+
+def _separated(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """(p,) bool, exact: triangle pairs (A[i], B[i]) (p,3,2), counter-clockwise, whose open interiors are disjoint."""
+    separated = np.zeros(len(A), dtype=bool)
+    for X, Y in ((A, B), (B, A)):
+        for e in range(3):
+            p, q = X[:, e], X[:, (e + 1) % 3]
+            outside = np.ones(len(A), dtype=bool)
+            for v in range(3):
+                todo = np.flatnonzero(~separated & outside)
+                if not len(todo):
+                    break
+                r = Y[todo, v]
+                s_ = _orient(p[todo, 0], p[todo, 1], q[todo, 0], q[todo, 1], r[:, 0], r[:, 1])
+                outside[todo[s_ > 0]] = False
+            separated |= outside
+    return separated
+
+
+def overlapping_pairs(uv: np.ndarray, Fuv: np.ndarray) -> np.ndarray:
     """Triangle pairs of the atlas whose open interiors intersect.
 
     Parameters
@@ -115,7 +176,7 @@ def overlapping_pairs(uv: np.ndarray, Fuv: np.ndarray, chunk: int = 1_000_000) -
 
     Returns
     -------
-    (p,2) int64 face pairs (i < j). Zero-area UV triangles have no interior and are never part of a pair
+    (p,2) int64 face pairs (i < j), sorted. Zero-area UV triangles have no interior and are never part of a pair
     (count them with :func:`uv_degenerate_faces`).
     """
     uv = np.asarray(uv, dtype=np.float64)
@@ -123,34 +184,19 @@ def overlapping_pairs(uv: np.ndarray, Fuv: np.ndarray, chunk: int = 1_000_000) -
     P = uv[Fuv]  # (m,3,2)
     ori = _orient(P[:, 0, 0], P[:, 0, 1], P[:, 1, 0], P[:, 1, 1], P[:, 2, 0], P[:, 2, 1])
     live = np.flatnonzero(ori != 0)
-    Pl = P[live]
-    # make every live triangle counter-clockwise
-    cw = ori[live] < 0
-    Pl[cw] = Pl[cw][:, ::-1]
-    cand = _candidates(Pl.min(axis=1), Pl.max(axis=1))
-    out = []
-    for s in range(0, len(cand), chunk):
-        c = cand[s:s + chunk]
-        A, B = Pl[c[:, 0]], Pl[c[:, 1]]
-        separated = np.zeros(len(c), dtype=bool)
-        for X, Y in ((A, B), (B, A)):
-            for e in range(3):
-                p, q = X[:, e], X[:, (e + 1) % 3]
-                outside = np.ones(len(c), dtype=bool)
-                for v in range(3):
-                    todo = np.flatnonzero(~separated & outside)
-                    if not len(todo):
-                        break
-                    r = Y[todo, v]
-                    s_ = _orient(p[todo, 0], p[todo, 1], q[todo, 0], q[todo, 1], r[:, 0], r[:, 1])
-                    outside[todo[s_ > 0]] = False
-                separated |= outside
-        hit = c[~separated]
-        out.append(live[hit])
-    if not out:
+    if len(live) < 2:
         return np.zeros((0, 2), dtype=np.int64)
-    res = np.sort(np.concatenate(out), axis=1)
-    return res[np.lexsort((res[:, 1], res[:, 0]))] if len(res) else np.zeros((0, 2), dtype=np.int64)
+    Pl = P[live]
+    cw = ori[live] < 0  # every live triangle made counter-clockwise
+    Pl[cw] = Pl[cw][:, ::-1]
+    lo, hi = Pl.min(axis=1), Pl.max(axis=1)
+    cell = max(float(np.median((hi - lo).max(axis=1))) * 2.0, 1e-300)
+    cand = _box_pairs(lo, hi, cell)
+    verdict = _pair_verdicts(np.ascontiguousarray(Pl), cand)
+    close = np.flatnonzero(verdict == 2)
+    verdict[close] = ~_separated(Pl[cand[close, 0]], Pl[cand[close, 1]])
+    res = np.sort(live[cand[verdict == 1]], axis=1)
+    return res[np.lexsort((res[:, 1], res[:, 0]))]
 
 
 def count_overlaps(uv: np.ndarray, Fuv: np.ndarray) -> int:

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from heatparam.compiled import compiled
 from heatparam.mesh.planar import covered_area
 
 __all__ = ["Grid", "Piece", "Placement", "SheetNester", "min_area_rotation", "orientations"]
@@ -79,22 +80,7 @@ def orientations(P: np.ndarray, rule: str) -> list[np.ndarray]:
     return out
 
 
-class _Compiled:
-    """A numba-compiled function, compiled (or loaded from numba's on-disk cache) at its first call: importing numba
-    costs 0.3-0.6 s, which only the runs that nest should pay."""
-
-    def __init__(self, fn):
-        self.fn, self.compiled = fn, None
-
-    def __call__(self, *args):
-        if self.compiled is None:
-            from numba import njit
-
-            self.compiled = njit(cache=True)(self.fn)
-        return self.compiled(*args)
-
-
-@_Compiled
+@compiled()
 def _raster(T, h, w):  # pragma: no cover - compiled
     """(h,w) uint8 conservative raster of triangles T (t,3,2) in pixel units: a pixel [j,j+1]x[i,i+1] is set
     when a triangle touches it (separating axes: the box's two, the triangle's three edge normals)."""
@@ -124,7 +110,7 @@ def _raster(T, h, w):  # pragma: no cover - compiled
     return img
 
 
-@_Compiled
+@compiled()
 def _first_fit(nxt, free, runs, rows, h, w, margin, slack, ylim, y0, x0):  # pragma: no cover - compiled
     """Lowest (at most ``ylim``; from row ``y0``, column ``x0`` on), then leftmost (y, x) where no run (``runs``
     (k,3): row offset, first and last column, relative to the raster's corner) meets an occupied pixel, the raster
@@ -166,7 +152,7 @@ def _first_fit(nxt, free, runs, rows, h, w, margin, slack, ylim, y0, x0):  # pra
     return -1, -1
 
 
-@_Compiled
+@compiled()
 def _stamp(occ, nxt, free, raster, y, x):  # pragma: no cover - compiled
     """Mark ``raster`` at (y, x) in ``occ`` and refresh ``nxt`` and ``free`` on its rows."""
     h, w = raster.shape
@@ -184,7 +170,7 @@ def _stamp(occ, nxt, free, raster, y, x):  # pragma: no cover - compiled
         free[row] = longest
 
 
-@_Compiled
+@compiled()
 def _dilated_runs(ras, g):  # pragma: no cover - compiled
     """The raster (h,w) dilated by a (2g+1)² square, as runs relative to the raster's corner: (k,3) int64 (row,
     first column, last column) and (r,2) int64 (row, longest run) for each row with a run."""
