@@ -178,7 +178,8 @@ OPTIONS: tuple[Option, ...] = (
            group="refine"),
     Option("max_distortion", 0.0, "float", "atlas (any mesh that is not a single disk: closed, handles, several "
            "parts, non-manifold scans; docs/atlas.md): the bound on each chart's mean isometric distortion; 0 = "
-           "automatic: a mesh that is one disk stays one piece with --pack scale, and every chart of an atlas, or "
+           "automatic: a mesh that is one disk, or a scan's main piece (every other part under 1% of its area), stays "
+           "one piece with --pack scale, and every chart of an atlas, or "
            "of a texture (--pack texture), is held to 1.05; a number > 1 is the bound for every chart, a disk's "
            "too", low=0.0, high=100.0, flag="--max-distortion",
            metavar="X", short="chart distortion bound; 0 = auto (1.05)", group="atlas"),
