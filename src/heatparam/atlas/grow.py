@@ -13,7 +13,6 @@ import math
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import dijkstra
 
 from heatparam.atlas.chart_topology import Topology, glue_inside
 from heatparam.compiled import compiled
@@ -23,69 +22,11 @@ __all__ = ["DEFAULT_CONE", "farthest_seeds", "grow", "halves"]
 DEFAULT_CONE = 60.0  # degrees: normal-cone half angle of a grown region
 
 
-@functools.lru_cache(maxsize=4096)
-def _first_pick(seed: int, n: int) -> int:
-    """The first draw ``np.random.default_rng(seed).integers(n)`` (a Generator costs 0.2 ms to make)."""
-    return int(np.random.default_rng(seed).integers(n))
-
-
-def farthest_seeds(topo: Topology, faces: np.ndarray, k: int, seed: int) -> np.ndarray:
-    """k farthest-point seed faces among ``faces`` on the face graph (centroid distances)."""
-    sf = np.sort(faces)
-    loc = np.full(len(topo.F), -1, dtype=np.int64)
-    loc[sf] = np.arange(len(sf))
-    h = (3 * sf[:, None] + np.arange(3)).ravel()
-    o = topo.opp[h]
-    ok = o >= 0
-    ok[ok] = loc[o[ok] // 3] >= 0
-    f, g = loc[h[ok] // 3], loc[o[ok] // 3]
-    C = topo.centroids()
-    w = np.linalg.norm(C[sf[f]] - C[sf[g]], axis=1) + 1e-12
-    if topo.double_neighbours():  # two faces on two common edges: one entry, the weights summed (as COO → CSR)
-        G = sp.csr_matrix((w, (f, g)), shape=(len(sf), len(sf)))
-    else:  # f ascends (rows in face order): the CSR arrays directly
-        indptr = np.zeros(len(sf) + 1, dtype=np.int32)
-        np.cumsum(np.bincount(f, minlength=len(sf)), out=indptr[1:])
-        G = sp.csr_matrix((w, g.astype(np.int32), indptr), shape=(len(sf), len(sf)))
-    d = dijkstra(G, indices=int(loc[faces[_first_pick(seed, len(faces))]]))
-    chosen = [int(np.argmax(np.where(np.isfinite(d), d, -1)))]
-    dmin = np.full(len(sf), np.inf)
-    while len(chosen) < k:  # (the distances from the last seed chosen are not needed)
-        d = dijkstra(G, indices=chosen[-1])
-        dmin = np.minimum(dmin, d)
-        cand = np.where(np.isfinite(dmin), dmin, -1.0)
-        nxt = int(np.argmax(cand))
-        if cand[nxt] <= 0:
-            break
-        chosen.append(nxt)
-    return sf[np.array(chosen, dtype=np.int64)]
-
-
-def grow(topo: Topology, faces: np.ndarray, cone_deg: float, target_faces: int, seed: int = 0) -> list[np.ndarray]:
-    """Normal-cone region growing over ``faces`` (module docstring), about ``target_faces`` faces per region;
-    each returned face array (ascending) is a topological disk."""
-    m = len(topo.F)
-    k = max(1, int(np.ceil(len(faces) / max(target_faces, 1))))
-    seeds = farthest_seeds(topo, faces, k, seed)
-    order = np.sort(faces)
-    lab = np.full(m + 1, -2, dtype=np.int64)  # -1 free, -2 not in the set; row m: the sentinel neighbour
-    lab[order] = -1
-    nb, cross = topo.neighbours()
-    vf, starts = topo.vertex_faces()
-    regions = _grow_regions(topo.F, topo.normals, topo.areas, nb, cross, vf, starts, lab, order,
-                            seeds.astype(np.int64), float(np.cos(np.radians(cone_deg))))
-    lab = lab[:m]
-    _smooth(topo, lab, faces)
-    mine = np.flatnonzero(lab >= 0)  # each region's faces ascending (a stable sort of the face order)
-    by = mine[np.argsort(lab[mine], kind="stable")]
-    ends = np.cumsum(np.bincount(lab[mine], minlength=regions))
-    return [r for r in np.split(by, ends[:-1]) if len(r)]
-
-
 @compiled()
 def _heap_push(heap, key, n, c, g, r):  # pragma: no cover - compiled
-    """Push (c, g, r) on the binary min-heap of n entries (``heap`` (cap,) costs, ``key`` (cap,2) face and region;
-    ordered as the tuples (c, g, r)); returns the arrays (doubled when full) and n + 1."""
+    """Push (c, g, r) on the binary min-heap of n entries (``heap`` (cap,) costs, ``key`` (cap,2) two integers: a
+    face and its region, or a vertex and 0; ordered as the tuples (c, g, r)); returns the arrays (doubled when full)
+    and n + 1."""
     if n == len(heap):
         heap = np.concatenate((heap, np.empty_like(heap)))
         key = np.concatenate((key, np.empty_like(key)))
@@ -119,6 +60,94 @@ def _heap_pop(heap, key, n):  # pragma: no cover - compiled
         i = j
     heap[i], key[i, 0], key[i, 1] = lc, lg, lr
     return c, g, r, n
+
+
+@functools.lru_cache(maxsize=4096)
+def _first_pick(seed: int, n: int) -> int:
+    """The first draw ``np.random.default_rng(seed).integers(n)`` (a Generator costs 0.2 ms to make)."""
+    return int(np.random.default_rng(seed).integers(n))
+
+
+def farthest_seeds(topo: Topology, faces: np.ndarray, k: int, seed: int) -> np.ndarray:
+    """k farthest-point seed faces among ``faces`` on the face graph (centroid distances)."""
+    sf = np.sort(faces)
+    loc = np.full(len(topo.F), -1, dtype=np.int64)
+    loc[sf] = np.arange(len(sf))
+    h = (3 * sf[:, None] + np.arange(3)).ravel()
+    o = topo.opp[h]
+    ok = o >= 0
+    ok[ok] = loc[o[ok] // 3] >= 0
+    f, g = loc[h[ok] // 3], loc[o[ok] // 3]
+    C = topo.centroids()
+    w = np.linalg.norm(C[sf[f]] - C[sf[g]], axis=1) + 1e-12
+    if topo.double_neighbours():  # two faces on two common edges: one entry, the weights summed (as COO → CSR)
+        G = sp.csr_matrix((w, (f, g)), shape=(len(sf), len(sf)))
+    else:  # f ascends (rows in face order): the CSR arrays directly
+        indptr = np.zeros(len(sf) + 1, dtype=np.int32)
+        np.cumsum(np.bincount(f, minlength=len(sf)), out=indptr[1:])
+        G = sp.csr_matrix((w, g.astype(np.int32), indptr), shape=(len(sf), len(sf)))
+    first = int(loc[faces[_first_pick(seed, len(faces))]])
+    return sf[_farthest(G.indptr.astype(np.int64), G.indices.astype(np.int64), G.data, first, k)]
+
+
+@compiled(_heap_push, _heap_pop)
+def _lower(indptr, indices, data, source, dist):  # pragma: no cover - compiled
+    """In place: ``dist`` (n,) lowered to the graph distances from ``source`` where those are shorter (Dijkstra;
+    a vertex no shorter path reaches is not expanded: what lies beyond it keeps its distance, which its own
+    distance bounds)."""
+    heap, key, n = np.empty(1024), np.zeros((1024, 2), dtype=np.int64), 0
+    dist[source] = 0.0
+    heap, key, n = _heap_push(heap, key, n, 0.0, source, 0)
+    while n:
+        d, v, _, n = _heap_pop(heap, key, n)
+        if d > dist[v]:
+            continue
+        for i in range(indptr[v], indptr[v + 1]):
+            w = indices[i]
+            nd = d + data[i]
+            if nd < dist[w]:
+                dist[w] = nd
+                heap, key, n = _heap_push(heap, key, n, nd, w, 0)
+
+
+@compiled(_lower)
+def _farthest(indptr, indices, data, first, k):  # pragma: no cover - compiled
+    """Up to k farthest-point seeds on the graph (CSR, edge lengths ``data``): the vertex farthest from ``first``,
+    then each time the one farthest from those chosen, while one is at a positive distance."""
+    n = len(indptr) - 1
+    dist = np.full(n, np.inf)
+    _lower(indptr, indices, data, first, dist)
+    chosen = np.empty(k, dtype=np.int64)
+    chosen[0] = np.argmax(np.where(np.isfinite(dist), dist, -1.0))
+    dist[:] = np.inf  # (the distances from the first vertex only chose the first seed)
+    for c in range(1, k):
+        _lower(indptr, indices, data, chosen[c - 1], dist)
+        cand = np.where(np.isfinite(dist), dist, -1.0)
+        chosen[c] = np.argmax(cand)
+        if cand[chosen[c]] <= 0:
+            return chosen[:c]
+    return chosen
+
+
+def grow(topo: Topology, faces: np.ndarray, cone_deg: float, target_faces: int, seed: int = 0) -> list[np.ndarray]:
+    """Normal-cone region growing over ``faces`` (module docstring), about ``target_faces`` faces per region;
+    each returned face array (ascending) is a topological disk."""
+    m = len(topo.F)
+    k = max(1, int(np.ceil(len(faces) / max(target_faces, 1))))
+    seeds = farthest_seeds(topo, faces, k, seed)
+    order = np.sort(faces)
+    lab = np.full(m + 1, -2, dtype=np.int64)  # -1 free, -2 not in the set; row m: the sentinel neighbour
+    lab[order] = -1
+    nb, cross = topo.neighbours()
+    vf, starts = topo.vertex_faces()
+    regions = _grow_regions(topo.F, topo.normals, topo.areas, nb, cross, vf, starts, lab, order,
+                            seeds.astype(np.int64), float(np.cos(np.radians(cone_deg))))
+    lab = lab[:m]
+    _smooth(topo, lab, faces)
+    mine = np.flatnonzero(lab >= 0)  # each region's faces ascending (a stable sort of the face order)
+    by = mine[np.argsort(lab[mine], kind="stable")]
+    ends = np.cumsum(np.bincount(lab[mine], minlength=regions))
+    return [r for r in np.split(by, ends[:-1]) if len(r)]
 
 
 @compiled(_heap_push)
