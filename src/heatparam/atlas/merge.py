@@ -1,6 +1,12 @@
 """Merging charts while the merged chart's quick flattening stays bijective and within the bound.
 
-PLACEHOLDER
+The segmentation's step 3 (``atlas.segment``): the paper's future work turned around, a union of two neighbouring
+charts is kept only while its layout stays bijective and within the bound. Two charts are glued along one stretch of
+their common border (``atlas.stretches``: longest first, ending at cone points), so a chart stays a disk. A merge
+is tested by extending the larger chart's layout over the smaller one (LSCM of the smaller chart with the stretch
+pinned where the larger one has it: the cost is the smaller chart's); where that cannot decide (the stretch is not
+one arc of both borders) the union is flattened whole and its disk test decides. Each chart keeps the layout its
+last passed test checked (:class:`Layouts`), the joint polish's start.
 """
 
 from __future__ import annotations
