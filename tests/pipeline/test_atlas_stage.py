@@ -299,3 +299,73 @@ def test_an_atlas_the_mesh_forced_warns_one_asked_for_does_not():
     s = datasets.cylinder_patch(h=0.1)
     asked = parameterize(s.V, s.F, max_distortion=1.05).report["warnings"]
     assert not any(w.startswith("an atlas of") for w in asked), asked
+
+
+# ----------------------------------------------------------------------------------------------------------
+# scans (issue 42): one main piece and debris
+# ----------------------------------------------------------------------------------------------------------
+def _cap_scan():
+    """The nearly hemispherical cap above (iso mean over 1.05 in one piece) as a scanner leaves it: a bowtie vertex
+    (two non-adjacent faces of an interior vertex's ring removed), three small floating islands (each ~0.2% of the
+    cap's area) and loose points. Returns V, F and the cap's face count."""
+    s = datasets.flat_disk(radius=1.0, h=0.1)
+    V, F = datasets.lift_sphere(s.V[:, :2], 1.01), s.F
+    v = int(np.argmin(np.linalg.norm(s.V[:, :2], axis=1)))
+    ring = np.flatnonzero((F == v).any(axis=1))
+    apart = [f for f in ring[1:] if len(set(F[f]) & set(F[ring[0]])) == 1]
+    F = np.delete(F, [ring[0], apart[0]], axis=0)
+    cap_faces = len(F)
+    island = datasets.flat_disk(radius=0.05, h=0.025)
+    for x in (-0.5, 0.0, 0.5):
+        F = np.vstack([F, island.F + len(V)])
+        V = np.vstack([V, island.V + [x, 0.6, 0.1]])
+    V = np.vstack([V, [[3.0, 3.0, 3.0], [4.0, 4.0, 4.0]]])  # loose points
+    return V, F, cap_faces
+
+
+def test_a_scan_keeps_its_main_piece_whole_and_its_debris_apart():
+    """A disk with a bowtie, islands and loose points is a scan: in the default pattern mode its main piece is one
+    chart whatever its distortion (as the disk alone would be), the islands their own charts within the bound,
+    reported in the repair section and in one warning; --pack texture and a max_distortion bound the main piece."""
+    V, F, cap_faces = _cap_scan()
+    r = parameterize(V, F)
+    rep = r.report["method"]["atlas"]
+    scan = rep["repair"]["scan"]
+    assert scan["main_component"] == 0 and scan["main_faces"] == cap_faces and scan["debris_components"] == 3
+    assert rep["repair"]["split_vertices"] == 1 and 0 < scan["debris_area_fraction"] < 0.01
+    main = [c for c in rep["charts"] if c["component"] == 0]
+    assert len(main) == 1 and main[0]["faces"] == cap_faces and main[0]["iso_mean"] > 1.05
+    assert all(c["iso_mean"] <= 1.05 for c in rep["charts"] if c["component"] != 0)
+    assert scan["debris_charts"] == len(rep["charts"]) - 1 >= 3
+    d = _zero_area_ok(V, F, r.uv, r.Fuv)
+    assert d["iso_mean"] > 1.05 and not uv_degenerate_faces(r.uv, r.Fuv).any()
+    np.testing.assert_array_equal(r.uv_vertex[r.Fuv], F)
+    scan_lines = [w for w in r.report["warnings"] if w.startswith("a scan:")]
+    assert len(scan_lines) == 1 and "3 detached small piece(s)" in scan_lines[0] and "1 non-manifold" in scan_lines[0]
+    assert not any(w.startswith("an atlas of") for w in r.report["warnings"])
+    again = parameterize(V, F)
+    np.testing.assert_array_equal(again.uv, r.uv)
+    np.testing.assert_array_equal(again.Fuv, r.Fuv)
+    for kw in ({"pack": "texture"}, {"max_distortion": 1.05}):
+        b = parameterize(V, F, **kw).report["method"]["atlas"]
+        assert "scan" not in b["repair"] and all(c["iso_mean"] <= 1.05 for c in b["charts"]), kw
+        assert sum(c["component"] == 0 for c in b["charts"]) > 1, kw
+
+
+def test_comparable_parts_are_no_scan_and_keep_the_bound():
+    """Two parts whose smaller one holds more than DEBRIS_AREA_SHARE of the larger one's area (here ~9%) are an
+    atlas whose every chart keeps the 1.05 bound; below that share the small one is debris."""
+    from heatparam.atlas.repair import repair
+
+    s = datasets.flat_disk(radius=1.0, h=0.1)
+    cap = datasets.lift_sphere(s.V[:, :2], 1.05)
+    for scale, scan in ((0.3, False), (0.07, True)):
+        V, F = np.vstack([cap, 0.3 * cap * scale / 0.3 + [3.0, 0, 0]]), np.vstack([s.F, s.F + len(cap)])
+        main = atlas_stage.scan_main(repair(V, F).components)
+        assert (main == 0) if scan else main is None
+        if scan:
+            continue
+        res = atlas(V, F)
+        _check_atlas(V, F, res, 1.05)
+        assert "scan" not in res.report["repair"] and all(c["iso_mean"] <= 1.05 for c in res.report["charts"])
+        assert sum(c["component"] == 0 for c in res.report["charts"]) > 1

@@ -4,7 +4,11 @@
 scans, several components, non-manifold vertices and edges) and when a distortion bound is asked for::
 
     repair (lossless): clean components                     atlas.repair
-    each component
+    a scan (one main piece, the rest debris: each under DEBRIS_AREA_SHARE of its area)
+      the main piece whole, one chart (pattern mode: any    flatten_disk
+        distortion; --pack texture: within the bound)
+      the debris together, as one part, segmented          atlas.segment (below)
+    else each component
       whole, when it is one disk mapped bijectively         flatten_disk (the default bound only)
       else segmented: grow, check, split, merge             atlas.segment
         the charts polished together                        atlas.polish (refine.charts)
@@ -28,30 +32,34 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from heatparam import metrics
+from heatparam.atlas.border_band import exact_overlap_count
 from heatparam.atlas.chart_seams import chart_seam_lengths, cut_half_edges, seam_length
 from heatparam.atlas.chart_topology import Topology, chart_mesh
 from heatparam.atlas.flatten import quick_flatten, segment_layout, triangle_layout
 from heatparam.atlas.grow import halves
-from heatparam.atlas.overlap import count_overlaps, folded_zero_area, uv_degenerate_faces
+from heatparam.atlas.overlap import folded_zero_area, uv_degenerate_faces
 from heatparam.atlas.pack import pack_charts
 from heatparam.atlas.polish import polish_charts
 from heatparam.atlas.repair import Component, Repair, half_edge_opposites, repair, union
 from heatparam.atlas.segment import proxy_bound, segment
 from heatparam.errors import HeatparamError
-from heatparam.mesh import validate_mesh
-from heatparam.mesh.topology import degenerate_faces
+from heatparam.mesh.topology import degenerate_faces, face_areas
 from heatparam.mesh.validate import as_arrays
 from heatparam.options import Options, make_options
 from heatparam.pipeline.report import Result, envelope
 from heatparam.refine import RefineParams
 
-__all__ = ["ATLAS_FIELDS", "AtlasResult", "Chart", "DEFAULT_MAX_DISTORTION", "DiskFlattener", "TINY_COMPONENT_FACES",
-           "atlas", "atlas_result"]
+__all__ = ["ATLAS_FIELDS", "AtlasResult", "Chart", "DEBRIS_AREA_SHARE", "DEFAULT_MAX_DISTORTION", "DiskFlattener",
+           "TINY_COMPONENT_FACES", "atlas", "atlas_result", "scan_main"]
 
 #: isometric distortion bound per chart (area-weighted mean of max(s1, 1/s2)); measured in BENCHMARKS.md
 DEFAULT_MAX_DISTORTION = 1.05
 #: components with fewer faces are reported as tiny (they still get charts)
 TINY_COMPONENT_FACES = 20
+#: a component under this share of the largest one's area is scan debris (a floating island, a fin cut off at a
+#: bowtie), not a part: debris measured 0.01-0.13% of the main piece on the tuning scans, a second real part (a
+#: two-part mask, an assembly) is tens of percent; 1% lies an order of magnitude from both (docs/atlas.md)
+DEBRIS_AREA_SHARE = 0.01
 #: the Options fields that are the atlas's own (not passed to the per-chart pipeline)
 ATLAS_FIELDS = ("max_distortion", "max_charts", "pack", "padding", "resolution", "texels_per_unit", "progress")
 
@@ -62,13 +70,15 @@ DiskFlattener = Callable[[np.ndarray, np.ndarray, Options], Result]
 @dataclass
 class AtlasResult:
     """uv (k,2) float64; Fuv (m,3) int64 rows of uv per face corner (F row for row); uv_vertex (k,) int64 input
-    vertex of each uv row; chart (m,) int64 chart of each face; report dict (per chart and totals)."""
+    vertex of each uv row; chart (m,) int64 chart of each face; report dict (per chart and totals); summary: the
+    map's ``metrics.summary`` (computed once: the report's totals and the pipeline's metrics both read it)."""
 
     uv: np.ndarray
     Fuv: np.ndarray
     uv_vertex: np.ndarray
     chart: np.ndarray
     report: dict = field(default_factory=dict)
+    summary: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -94,9 +104,12 @@ def atlas(V: np.ndarray, F: np.ndarray, flatten_disk: DiskFlattener, *, max_dist
     V : (n,3) float64. F : (m,3) int64.
     flatten_disk : flattens one disk chart: ``heatparam.pipeline.parameterize_disk``.
     max_distortion : per-chart bound on the isometric distortion (area-weighted mean of max(s1, 1/s2)).
-        None (default): charts are segmented and merged to ``DEFAULT_MAX_DISTORTION`` (1.05), and an open part
-        that ``parameterize`` accepts (a disk, possibly with holes, not nearly closed) stays one piece when its
-        map is bijective, whatever its distortion. A number: every part is segmented to that bound.
+        None (default): charts are segmented and merged to ``DEFAULT_MAX_DISTORTION`` (1.05); a part that
+        ``parameterize`` accepts (a disk, possibly with holes, not nearly closed) stays one piece when its map is
+        bijective and within that bound. A scan (:func:`scan_main`: one main piece, every other component debris)
+        keeps its main piece whole as a plain disk would be: with ``pack='scale'`` whatever its distortion
+        (when bijective), with ``'texture'`` within the bound; its debris is charted together, within the bound.
+        A number: every part is segmented to that bound.
     max_charts : a cap on the charts of each component: when the bound leaves more, merging goes on past the
         bound (each merged chart still bijective) down to this count where bijective merges exist; a warning
         says when the atlas still has more.
@@ -117,17 +130,22 @@ def atlas(V: np.ndarray, F: np.ndarray, flatten_disk: DiskFlattener, *, max_dist
     if opts.get("mds_start", "auto") == "auto":  # charts are small and clean: the heat stage never won a start on
         opts["mds_start"] = "never"  # them (the same atlases, 26-36% faster; BENCHMARKS §10)
     rep = repair(V, F)
+    # a scan's main piece is one piece in pattern mode, as a disk is (parameterize); a texture bounds it
+    main_bound = None if max_distortion is None and pack == "scale" else bound
     maker = _ChartMaker(flatten_disk, make_options(None, **opts), bound, whole_first=max_distortion is None,
-                        max_charts=max_charts, seed=seed)
+                        max_charts=max_charts, seed=seed, main_bound=main_bound)
     components, tiny = maker.components(rep.components)
+    debris = maker.debris_report(rep.components)
     t_flat = time.perf_counter() - t0
     placed, pinfo = pack_charts([c.uv for c in maker.charts], [c.Fl for c in maker.charts], pack, padding,
                                 resolution, texels_per_unit=texels_per_unit)
     res = _assemble(maker.charts, placed, len(F))
+    res.summary = metrics.summary(V, F, res.uv, res.Fuv)
     res.report = {"parameters": {"max_distortion": max_distortion, "bound_used": bound, "max_charts": max_charts,
                                  "pack": pinfo["mode"]},
-                  **_report(V, F, res, charts=maker.charts, rep=rep, components=components, tiny=tiny, pinfo=pinfo),
-                  "warnings": _warnings(len(maker.charts), max_charts, rep, degenerate_faces(V, F).sum()),
+                  **_report(V, F, res, charts=maker.charts, rep=rep, components=components, tiny=tiny, pinfo=pinfo,
+                            debris=debris),
+                  "warnings": _warnings(len(maker.charts), max_charts, rep, degenerate_faces(V, F).sum(), debris),
                   "seconds": {"charts": t_flat, "total": time.perf_counter() - t0}}
     return res
 
@@ -144,13 +162,14 @@ def atlas_result(V: np.ndarray, F: np.ndarray, opts: Options, *, why: str, flatt
                 pack=opts.pack, padding=opts.padding, resolution=opts.resolution,
                 texels_per_unit=opts.texels_per_unit or None, seed=opts.seed,
                 **pipeline_options)
-    summary = metrics.summary(V, F, res.uv, res.Fuv)
+    summary = dict(res.summary)
     summary["stress_rel_rms"] = None
     t = res.report["totals"]
     summary.update(charts=t["charts"], overlapping_triangle_pairs=t["overlapping_triangle_pairs"],
                    uv_degenerate_faces=t["uv_degenerate_faces"], seam_length=t["seam_length"])
     # an atlas asked for (a bound, texture packing) is no news; one the mesh forced is, with what to do for one piece
-    made = [] if opts.max_distortion or opts.pack == "texture" else [
+    scan = "scan" in res.report["repair"]  # (its own warning says what was split off)
+    made = [] if opts.max_distortion or opts.pack == "texture" or scan else [
         f"an atlas of {t['charts']} chart(s): the mesh is not one disk ({why}); the OBJ's vt rows split along the "
         "seams (for one piece, cut the mesh into a disk first)"]
     warnings = [*made, *res.report.get("warnings", [])]
@@ -174,23 +193,30 @@ class _ChartMaker:
 
     flatten_disk : the pipeline on one disk. opts : the Options of every chart's flattening. bound : the charts'
     distortion bound. whole_first : try each component whole first (no bound asked for). max_charts : the cap on
-    each component's charts. seed : the segmentation's seeds."""
+    each component's charts. seed : the segmentation's seeds. main_bound : the bound on a scan's main piece kept
+    whole (None: any distortion). After :meth:`components`, ``main`` is the scan's main piece kept whole (None
+    when the mesh is no scan or its main piece was segmented) and ``debris`` the other components."""
 
     def __init__(self, flatten_disk: DiskFlattener, opts: Options, bound: float, *, whole_first: bool,
-                 max_charts: int | None, seed: int):
+                 max_charts: int | None, seed: int, main_bound: float | None = None):
         self.flatten_disk, self.opts, self.bound = flatten_disk, opts, bound
-        self.whole_first, self.max_charts, self.seed = whole_first, max_charts, seed
+        self.whole_first, self.max_charts, self.seed, self.main_bound = whole_first, max_charts, seed, main_bound
         self.polish = None if opts.refine == "none" else RefineParams.from_options(opts)
         self.charts: list[Chart] = []
+        self.main: int | None = None
+        self.debris: list[int] = []
 
     def components(self, comps: list[Component]) -> tuple[list[dict], list[int]]:
         """Every component charted: (the report entry of each, the tiny components)."""
         reports: list[dict] = [{} for _ in comps]
         tiny = [ci for ci, c in enumerate(comps) if len(c.F) < TINY_COMPONENT_FACES]
+        tried = self._scan(comps, reports) if self.whole_first else None
+        if self.main is not None:
+            return reports, tiny
         for ci, comp in enumerate(comps):
             if len(tiny) > 1 and ci in tiny:
                 continue  # below, all together
-            whole = self.whole(comp, ci) if self.whole_first else None
+            whole = self.whole(comp, ci, self.bound) if self.whole_first and ci != tried else None
             if whole is not None:
                 self.charts.append(whole)
                 reports[ci] = {"faces": int(len(comp.F)), "charts": 1, "segmented": False}
@@ -198,31 +224,61 @@ class _ChartMaker:
             made, stats = self.segmented(comp, ci, self.max_charts)
             reports[ci] = {"faces": int(len(comp.F)), "charts": made, "segmented": True, **stats}
         if len(tiny) > 1:
-            self._tiny_together(comps, tiny, reports)
+            self._together(comps, tiny, reports, "tiny_components")
         return reports, tiny
 
-    def _tiny_together(self, comps: list[Component], tiny: list[int], reports: list[dict]) -> None:
-        """The fins and crumbs of a scan segmented and polished as one part (one solve, not one each)."""
-        part, owner = union([comps[ci] for ci in tiny], tiny)
+    def _scan(self, comps: list[Component], reports: list[dict]) -> int | None:
+        """A scan's main piece (:func:`scan_main`) flattened whole, its debris charted together; sets ``main`` when
+        the main piece was kept as one chart. Returns the main piece tried (None: no scan), whose whole map,
+        refused, need not be tried again."""
+        main = scan_main(comps)
+        if main is None:
+            return None
+        whole = self.whole(comps[main], main, self.main_bound)
+        if whole is None:
+            return main
+        self.main, self.debris = main, [ci for ci in range(len(comps)) if ci != main]
+        self.charts.append(whole)
+        reports[main] = {"faces": int(len(comps[main].F)), "charts": 1, "segmented": False, "main_piece": True}
+        if self.debris:
+            self._together(comps, self.debris, reports, "debris")
+        return main
+
+    def debris_report(self, comps: list[Component]) -> dict | None:
+        """The report's ``repair.scan`` (None when no scan's main piece was kept whole): the main piece, and the
+        debris (components, faces, share of the mesh's area, charts)."""
+        if self.main is None:
+            return None
+        area = np.array([face_areas(c.V, c.F).sum() for c in comps])
+        charts = sum(c.component != self.main for c in self.charts)
+        return {"main_component": self.main, "main_faces": int(len(comps[self.main].F)),
+                "debris_components": len(self.debris), "debris_faces": int(sum(len(comps[ci].F) for ci in self.debris)),
+                "debris_area_fraction": float(area[self.debris].sum() / area.sum()), "debris_charts": int(charts),
+                "debris_area_share_max": DEBRIS_AREA_SHARE}
+
+    def _together(self, comps: list[Component], ids: list[int], reports: list[dict], label: str) -> None:
+        """The fins and crumbs of a scan (``label``: the tiny components, or a scan's debris) segmented and polished
+        as one part (one solve, not one each)."""
+        part, owner = union([comps[ci] for ci in ids], ids)
         start = len(self.charts)
         _, stats = self.segmented(part, owner, None)
         made = np.bincount([c.component for c in self.charts[start:]], minlength=len(comps))
-        for ci in tiny:
+        for ci in ids:
             reports[ci] = {"faces": int(len(comps[ci].F)), "charts": int(made[ci]), "segmented": True,
-                           "with_the_tiny_components": True}
-        reports[tiny[0]]["tiny_components_together"] = {"components": len(tiny), **stats}
+                           f"with_the_{label}": True}
+        reports[ids[0]][f"{label}_together"] = {"components": len(ids), **stats}
 
-    def whole(self, comp: Component, ci: int) -> Chart | None:
-        """A component that is a single disk (not nearly closed), flattened whole by the pipeline, as one chart when
-        its map is bijective and within the bound; None otherwise (it is segmented like any other)."""
+    def whole(self, comp: Component, ci: int, bound: float | None) -> Chart | None:
+        """A component that is a single disk (not nearly closed), flattened whole by the pipeline (which validates
+        it), as one chart when its map is bijective and within ``bound`` (None: any distortion); None otherwise (it
+        is segmented like any other)."""
         try:
-            validate_mesh(comp.V, comp.F, flatten=True)
             res = self.flatten_disk(comp.V, comp.F, self.opts)
         except HeatparamError:
             return None
         met = res.report["metrics"]
         Fuv = res.Fuv if res.Fuv is not None else comp.F
-        kept = met["bijective"] and not met["flips"] and met["iso_mean"] <= self.bound
+        kept = met["bijective"] and not met["flips"] and (bound is None or met["iso_mean"] <= bound)
         if not kept or folded_zero_area(comp.V, comp.F, res.uv, Fuv):
             return None
         return Chart(comp.faces, np.asarray(Fuv, dtype=np.int64), comp.vertex[res.uv_vertex], res.uv, ci,
@@ -307,6 +363,16 @@ class _ChartMaker:
         self.charts.append(Chart(comp.faces[faces], Fl, comp.vertex[vert], uv, int(owner[faces[0]]), info))
 
 
+def scan_main(comps: list[Component]) -> int | None:
+    """The main piece of a scan: the component of largest area when every other component is debris, under
+    ``DEBRIS_AREA_SHARE`` of its area (islands, fins cut off at bowties, crumbs); None when the mesh has two or
+    more comparable parts (each is then charted within the bound). An area share, not a face count: a scan's
+    density says nothing of what is a part; its area does."""
+    areas = np.array([face_areas(c.V, c.F).sum() for c in comps])
+    main = int(np.argmax(areas))
+    return main if (np.delete(areas, main) < DEBRIS_AREA_SHARE * areas[main]).all() else None
+
+
 def _chart_ok(info: dict, bound: float | None) -> bool:
     if "error" in info or not info["bijective"] or info["flips"]:
         return False
@@ -327,8 +393,9 @@ def _assemble(charts: list[Chart], placed: list[np.ndarray], m: int) -> AtlasRes
 
 
 def _report(V: np.ndarray, F: np.ndarray, res: AtlasResult, *, charts: list[Chart], rep: Repair,
-            components: list[dict], tiny: list[int], pinfo: dict) -> dict:
-    """The atlas's report: repair, components, per chart and totals, packing."""
+            components: list[dict], tiny: list[int], pinfo: dict, debris: dict | None) -> dict:
+    """The atlas's report: repair (with ``scan``: a scan's main piece and debris), components, per chart and
+    totals, packing."""
     A3 = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
     opp = half_edge_opposites(F)
     cut = cut_half_edges(F, res.Fuv, opp)  # per chart seam length: its border edges that are not mesh border
@@ -336,7 +403,7 @@ def _report(V: np.ndarray, F: np.ndarray, res: AtlasResult, *, charts: list[Char
     per = [{"chart": i, "component": c.component, "faces": int(len(c.faces)), "area": float(A3[c.faces].sum()),
             "iso_mean": float(c.info.get("iso_mean", float("nan"))), "flips": int(c.info["flips"]),
             "method": c.info.get("method"), "seam_length": float(seams[i])} for i, c in enumerate(charts)]
-    d = metrics.distortion(V, F, res.uv, res.Fuv)
+    d = res.summary
     L = seam_length(V, F, res.Fuv, opp, cut)
     area = float(A3.sum())
     totals = {
@@ -346,21 +413,35 @@ def _report(V: np.ndarray, F: np.ndarray, res: AtlasResult, *, charts: list[Char
         "iso_mean": d["iso_mean"],
         "iso_p95": d["iso_p95"],
         "flips": d["flips"],
-        "overlapping_triangle_pairs": count_overlaps(res.uv, res.Fuv),
+        "overlapping_triangle_pairs": exact_overlap_count(res.uv, res.Fuv),
         "uv_degenerate_faces": int(uv_degenerate_faces(res.uv, res.Fuv).sum()),
         "zero_area_faces": int(degenerate_faces(V, F).sum()),
         "packing_efficiency": pinfo["efficiency"],
         "area": area,
         "uv_scale": pinfo["scale"],
     }
-    return {"repair": rep.report(),
+    return {"repair": {**rep.report(), **({"scan": debris} if debris else {})},
             "tiny_components": [{"component": i, "faces": int(len(rep.components[i].F))} for i in tiny],
             "components": components, "charts": per, "totals": totals, "pack": pinfo}
 
 
-def _warnings(charts: int, max_charts: int | None, rep: Repair, zero_area: int) -> list[str]:
+def _warnings(charts: int, max_charts: int | None, rep: Repair, zero_area: int, debris: dict | None
+              ) -> list[str]:
     return (([f"{charts} charts exceed --max-charts {max_charts}"] if max_charts is not None and charts > max_charts
              else [])
+            + ([_scan_warning(debris, rep.split_vertices)] if debris else [])
             + ([f"{len(rep.loose_points)} unreferenced vertices kept without UV"] if len(rep.loose_points) else [])
             + ([f"{zero_area} zero-area faces laid out with the charts around them (intrinsic mollification of edge "
                 "lengths), or as segments where they are alone"] if zero_area else []))
+
+
+def _scan_warning(debris: dict, split: int) -> str:
+    """What a scan's repair split off its main piece (kept as one chart), in one line."""
+    parts = [f"{split} non-manifold vertices split (one UV row per fan)"] if split else []
+    if debris["debris_components"]:
+        parts.append(f"{debris['debris_components']} detached small piece(s) ({debris['debris_faces']} faces, "
+                     f"{debris['debris_area_fraction']:.2%} of the area, each under "
+                     f"{DEBRIS_AREA_SHARE:.0%} of the main piece's) charted apart in {debris['debris_charts']} "
+                     "chart(s)")
+    return ("a scan: its main piece is one chart; " + (", ".join(parts) or "nothing split off")
+            + " (remove the debris in the scan software for a single chart)")
