@@ -17,9 +17,8 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from heatparam.errors import MeshError
-from heatparam.mesh import validate_mesh
 from heatparam.mesh.topology import degenerate_faces, unique_inverse
-from heatparam.mesh.validate import ALL_ZERO_AREA, check_arrays
+from heatparam.mesh.validate import ALL_ZERO_AREA, check_arrays, check_edges, check_vertex_fans, edge_structure
 
 __all__ = ["Component", "Repair", "half_edge_opposites", "repair", "union"]
 
@@ -90,7 +89,8 @@ def repair(V: np.ndarray, F: np.ndarray) -> Repair:
 
     Returns
     -------
-    :class:`Repair`. Each component passed ``heatparam.mesh.validate_mesh(..., flatten=False)``.
+    :class:`Repair`. Each component passes ``heatparam.mesh.validate_mesh(..., flatten=False)`` (one
+    connected, oriented manifold; a component of zero-area faces only has no area to check).
 
     Raises
     ------
@@ -108,22 +108,40 @@ def repair(V: np.ndarray, F: np.ndarray) -> Repair:
     per_vertex = np.bincount(cls_vertex, minlength=n)
     referenced = np.zeros(n, dtype=bool)
     referenced[F.ravel()] = True
-    comps = []
-    sizes = np.bincount(fcomp, minlength=ncomp)
-    for ci in np.argsort(-sizes, kind="stable"):
-        faces = np.flatnonzero(fcomp == ci)
-        verts, Fl = np.unique(cls.reshape(m, 3)[faces], return_inverse=True)
-        Fl = Fl.reshape(-1, 3).astype(np.int64)
-        vin = cls_vertex[verts]
-        Vc = V[vin]
-        if degenerate[faces].all():  # zero-area faces only: no area to check, the atlas lays them out as segments
-            check_arrays(Vc, Fl)
-        else:
-            validate_mesh(Vc, Fl, flatten=False)
-        comps.append(Component(V=Vc, F=Fl, faces=faces, vertex=vin))
+    C = cls.reshape(m, 3)
+    # the components side by side are (V[cls_vertex], C), connected each by construction; the other checks are
+    # local, so one pass over them all checks each
+    edges = edge_structure(C)
+    check_edges(edges)
+    check_vertex_fans(C, edges)
+    comps = _components(V, C, cls_vertex, fcomp, ncomp)
     split = int((per_vertex > 1).sum())
     return Repair(components=comps, split_vertices=split, cut_edges=_unwelded_edges(F, opp, n),
                   loose_points=np.flatnonzero(~referenced))
+
+
+def _components(V: np.ndarray, C: np.ndarray, cls_vertex: np.ndarray, fcomp: np.ndarray, ncomp: int
+                ) -> list[Component]:
+    """The components, largest first (ties: in component order): each one's faces ascending and its vertices in
+    welded-vertex order (``C`` (m,3) the welded vertex of each corner, ``cls_vertex`` the input vertex of each)."""
+    sizes = np.bincount(fcomp, minlength=ncomp)
+    rank = np.empty(ncomp, dtype=np.int64)
+    rank[np.argsort(-sizes, kind="stable")] = np.arange(ncomp)  # each component's place in the output
+    forder = np.argsort(rank[fcomp], kind="stable")
+    fstart = np.r_[0, np.cumsum(np.bincount(rank[fcomp], minlength=ncomp))]
+    nv = len(cls_vertex)
+    vcomp = np.empty(nv, dtype=np.int64)
+    vcomp[C.ravel()] = np.repeat(rank[fcomp], 3)
+    vorder = np.argsort(vcomp, kind="stable")  # by component, welded vertices ascending within each
+    vstart = np.r_[0, np.cumsum(np.bincount(vcomp, minlength=ncomp))]
+    local = np.empty(nv, dtype=np.int64)
+    local[vorder] = np.arange(nv) - vstart[vcomp[vorder]]
+    comps = []
+    for c in range(ncomp):
+        faces = forder[fstart[c]:fstart[c + 1]]
+        vin = cls_vertex[vorder[vstart[c]:vstart[c + 1]]]
+        comps.append(Component(V=V[vin], F=local[C[faces]], faces=faces, vertex=vin))
+    return comps
 
 
 def _weld(F: np.ndarray, opp: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
