@@ -307,7 +307,8 @@ def test_an_atlas_the_mesh_forced_warns_one_asked_for_does_not():
 def _cap_scan():
     """The nearly hemispherical cap above (iso mean over 1.05 in one piece) as a scanner leaves it: a bowtie vertex
     (two non-adjacent faces of an interior vertex's ring removed), three small floating islands (each ~0.2% of the
-    cap's area) and loose points. Returns V, F and the cap's face count."""
+    cap's area: charted whole), a crumb of two faces (charted with the tiny ones) and loose points. Returns V, F and
+    the cap's face count."""
     s = datasets.flat_disk(radius=1.0, h=0.1)
     V, F = datasets.lift_sphere(s.V[:, :2], 1.01), s.F
     v = int(np.argmin(np.linalg.norm(s.V[:, :2], axis=1)))
@@ -319,6 +320,8 @@ def _cap_scan():
     for x in (-0.5, 0.0, 0.5):
         F = np.vstack([F, island.F + len(V)])
         V = np.vstack([V, island.V + [x, 0.6, 0.1]])
+    F = np.vstack([F, [[0, 1, 2], [0, 2, 3]] + np.int64(len(V))])
+    V = np.vstack([V, [[0, 0, 0.5], [0.02, 0, 0.5], [0.02, 0.02, 0.5], [0, 0.02, 0.52]]])
     V = np.vstack([V, [[3.0, 3.0, 3.0], [4.0, 4.0, 4.0]]])  # loose points
     return V, F, cap_faces
 
@@ -331,17 +334,18 @@ def test_a_scan_keeps_its_main_piece_whole_and_its_debris_apart():
     r = parameterize(V, F)
     rep = r.report["method"]["atlas"]
     scan = rep["repair"]["scan"]
-    assert scan["main_component"] == 0 and scan["main_faces"] == cap_faces and scan["debris_components"] == 3
+    assert scan["main_component"] == 0 and scan["main_faces"] == cap_faces and scan["debris_components"] == 4
     assert rep["repair"]["split_vertices"] == 1 and 0 < scan["debris_area_fraction"] < 0.01
     main = [c for c in rep["charts"] if c["component"] == 0]
     assert len(main) == 1 and main[0]["faces"] == cap_faces and main[0]["iso_mean"] > 1.05
     assert all(c["iso_mean"] <= 1.05 for c in rep["charts"] if c["component"] != 0)
-    assert scan["debris_charts"] == len(rep["charts"]) - 1 >= 3
+    assert scan["debris_charts"] == len(rep["charts"]) - 1 >= 4
+    assert [c["segmented"] for c in rep["components"]] == [False, False, False, False, True]
     d = _zero_area_ok(V, F, r.uv, r.Fuv)
     assert d["iso_mean"] > 1.05 and not uv_degenerate_faces(r.uv, r.Fuv).any()
     np.testing.assert_array_equal(r.uv_vertex[r.Fuv], F)
     scan_lines = [w for w in r.report["warnings"] if w.startswith("a scan:")]
-    assert len(scan_lines) == 1 and "3 detached small piece(s)" in scan_lines[0] and "1 non-manifold" in scan_lines[0]
+    assert len(scan_lines) == 1 and "4 detached small piece(s)" in scan_lines[0] and "1 non-manifold" in scan_lines[0]
     assert not any(w.startswith("an atlas of") for w in r.report["warnings"])
     again = parameterize(V, F)
     np.testing.assert_array_equal(again.uv, r.uv)

@@ -41,7 +41,7 @@ from heatparam.atlas.overlap import folded_zero_area, uv_degenerate_faces
 from heatparam.atlas.pack import pack_charts
 from heatparam.atlas.polish import polish_charts
 from heatparam.atlas.repair import Component, Repair, half_edge_opposites, repair, union
-from heatparam.atlas.segment import proxy_bound, segment
+from heatparam.atlas.segment import Segmentation, proxy_bound, segment
 from heatparam.errors import HeatparamError
 from heatparam.mesh.topology import degenerate_faces, face_areas
 from heatparam.mesh.validate import as_arrays
@@ -241,8 +241,31 @@ class _ChartMaker:
         self.charts.append(whole)
         reports[main] = {"faces": int(len(comps[main].F)), "charts": 1, "segmented": False, "main_piece": True}
         if self.debris:
-            self._together(comps, self.debris, reports, "debris")
+            self._debris(comps, reports)
         return main
+
+    def _debris(self, comps: list[Component], reports: list[dict]) -> None:
+        """A scan's debris: each piece of at least ``TINY_COMPONENT_FACES`` faces one chart when its LSCM layout,
+        polished with the others' in one system, is bijective and within the bound (what the pipeline, one run
+        per piece, decided before); the rest segmented together."""
+        whole = [ci for ci in self.debris if len(comps[ci].F) >= TINY_COMPONENT_FACES]
+        rest = [ci for ci in self.debris if ci not in whole]
+        if whole:
+            part, owner = union([comps[ci] for ci in whole], whole)
+            topo = Topology.build(part.V, part.F)
+            piece = np.repeat(np.arange(len(whole)), [len(comps[ci].F) for ci in whole])
+            seg = Segmentation(piece, topo.opp >= 0, {}, np.zeros((3 * len(part.F), 2)),
+                               np.zeros(len(whole), dtype=bool))
+            groups = [np.flatnonzero(piece == i) for i in range(len(whole))]
+            limit = proxy_bound(self.bound) if self.polish is None else self.bound
+            done, failed, _ = polish_charts(topo, groups, seg, limit=limit, params=self.polish)
+            for p in done:
+                self._add(part, owner, p.faces, Fl=p.Fl, vert=p.vert, uv=p.uv, info=p.info)
+                ci = int(owner[p.faces[0]])
+                reports[ci] = {"faces": int(len(comps[ci].F)), "charts": 1, "segmented": False}
+            rest = sorted(rest + [whole[i] for i in failed])
+        if rest:
+            self._together(comps, rest, reports, "debris")
 
     def debris_report(self, comps: list[Component]) -> dict | None:
         """The report's ``repair.scan`` (None when no scan's main piece was kept whole): the main piece, and the
