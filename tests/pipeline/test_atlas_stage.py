@@ -346,7 +346,9 @@ def test_a_scan_keeps_its_main_piece_whole_and_its_debris_apart():
     np.testing.assert_array_equal(r.uv_vertex[r.Fuv], F)
     scan_lines = [w for w in r.report["warnings"] if w.startswith("a scan:")]
     assert len(scan_lines) == 1 and "4 detached small piece(s)" in scan_lines[0] and "1 non-manifold" in scan_lines[0]
+    assert "the main piece's map stretches the surface" in scan_lines[0]  # as the disk's one-piece map would say
     assert not any(w.startswith("an atlas of") for w in r.report["warnings"])
+    assert "refine" in rep["components"][0]["pipeline"]["timings_s"]  # where the main piece's time went
     again = parameterize(V, F)
     np.testing.assert_array_equal(again.uv, r.uv)
     np.testing.assert_array_equal(again.Fuv, r.Fuv)

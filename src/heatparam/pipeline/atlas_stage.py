@@ -239,7 +239,8 @@ class _ChartMaker:
             return main
         self.main, self.debris = main, [ci for ci in range(len(comps)) if ci != main]
         self.charts.append(whole)
-        reports[main] = {"faces": int(len(comps[main].F)), "charts": 1, "segmented": False, "main_piece": True}
+        reports[main] = {"faces": int(len(comps[main].F)), "charts": 1, "segmented": False, "main_piece": True,
+                         "pipeline": whole.info["pipeline"]}
         if self.debris:
             self._debris(comps, reports)
         return main
@@ -274,7 +275,8 @@ class _ChartMaker:
             return None
         area = np.array([face_areas(c.V, c.F).sum() for c in comps])
         charts = sum(c.component != self.main for c in self.charts)
-        return {"main_component": self.main, "main_faces": int(len(comps[self.main].F)),
+        main_iso = next(c.info["iso_mean"] for c in self.charts if c.component == self.main)
+        return {"main_component": self.main, "main_faces": int(len(comps[self.main].F)), "main_iso_mean": main_iso,
                 "debris_components": len(self.debris), "debris_faces": int(sum(len(comps[ci].F) for ci in self.debris)),
                 "debris_area_fraction": float(area[self.debris].sum() / area.sum()), "debris_charts": int(charts),
                 "debris_area_share_max": DEBRIS_AREA_SHARE}
@@ -304,9 +306,12 @@ class _ChartMaker:
         kept = met["bijective"] and not met["flips"] and (bound is None or met["iso_mean"] <= bound)
         if not kept or folded_zero_area(comp.V, comp.F, res.uv, Fuv):
             return None
+        seams = res.report["method"].get("seams", {})
         return Chart(comp.faces, np.asarray(Fuv, dtype=np.int64), comp.vertex[res.uv_vertex], res.uv, ci,
                      {"iso_mean": float(met["iso_mean"]), "flips": int(met["flips"]), "bijective": True,
-                      "method": "pipeline (whole part)"})
+                      "method": "pipeline (whole part)",
+                      "pipeline": {"timings_s": res.report.get("timings_s", {}),
+                                   "seams": {k: seams.get(k) for k in ("used", "reason")}}})
 
     def segmented(self, comp: Component, ci: int | np.ndarray, max_charts: int | None) -> tuple[int, dict]:
         """Segment a component (``atlas.segment``), polish the charts together, flatten a chart that fails with the
@@ -466,5 +471,10 @@ def _scan_warning(debris: dict, split: int) -> str:
                      f"{debris['debris_area_fraction']:.2%} of the area, each under "
                      f"{DEBRIS_AREA_SHARE:.0%} of the main piece's) charted apart in {debris['debris_charts']} "
                      "chart(s)")
-    return ("a scan: its main piece is one chart; " + (", ".join(parts) or "nothing split off")
+    line = ("a scan: its main piece is one chart; " + (", ".join(parts) or "nothing split off")
             + " (remove the debris in the scan software for a single chart)")
+    if debris["main_iso_mean"] > DEFAULT_MAX_DISTORTION:  # as a one-piece disk map says (pipeline.parameterize)
+        line += (f"; the main piece's map stretches the surface: isometric distortion mean "
+                 f"{debris['main_iso_mean']:.3f} (1 = none); max_distortion={DEFAULT_MAX_DISTORTION} cuts it into "
+                 f"pieces within {DEFAULT_MAX_DISTORTION}")
+    return line
