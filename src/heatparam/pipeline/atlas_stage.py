@@ -7,7 +7,8 @@ scans, several components, non-manifold vertices and edges) and when a distortio
     a scan (one main piece, the rest debris: each under DEBRIS_AREA_SHARE of its area)
       the main piece whole, one chart (pattern mode: any    flatten_disk
         distortion; --pack texture: within the bound)
-      the debris together, as one part, segmented          atlas.segment (below)
+      each debris piece whole (LSCM, polished jointly)      atlas.polish
+        within the bound, the rest together, segmented      atlas.segment (below)
     else each component
       whole, when it is one disk mapped bijectively         flatten_disk (the default bound only)
       else segmented: grow, check, split, merge             atlas.segment
@@ -16,7 +17,7 @@ scans, several components, non-manifold vertices and edges) and when a distortio
           else its LSCM layout, else one chart per face     atlas.flatten.quick_flatten
     the tiny components together, as one part               atlas.repair.union
     pack                                                    atlas.pack
-    the map and its report                                  AtlasResult; Result (report.envelope)
+    the map and its report (overlaps: the border band)      AtlasResult; Result (report.envelope)
 
 The input's vertices and faces are unchanged, row for row; face f's corners map to ``uv[Fuv[f]]``. Disks are
 flattened by the function the stage is given (``flatten_disk``: ``pipeline.parameterize_disk``), so that this
