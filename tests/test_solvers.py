@@ -1,5 +1,7 @@
 """Sparse SPD factorizations: backends and refactorization with a reused analysis (``solvers``)."""
 
+import contextlib
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -222,6 +224,30 @@ def test_pardiso_analysis_alone_then_a_numerical_factorization():
         g.solve(b)
     with pytest.raises(ValueError, match="pardiso"):
         Factor(A, "scipy", numeric=False)
+
+
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="pypardiso not installed")
+def test_classic_pardiso_factorizations_run_on_one_thread(monkeypatch):
+    # the largest system PARDISO factorizes the classic way (below the two-level size: the polish's coarse levels)
+    # runs every phase on one thread; the first two-level size does not
+    threads = []
+    real = solvers.pardiso_threads
+
+    @contextlib.contextmanager
+    def spy(solver, size):
+        with real(solver, size):
+            threads.append((size, solver.libmkl.MKL_Get_Max_Threads()))
+            yield
+
+    monkeypatch.setattr(solvers, "pardiso_threads", spy)
+    for n in (solvers.TWO_LEVEL_MIN_UNKNOWNS - 1, solvers.TWO_LEVEL_MIN_UNKNOWNS):
+        A = sp.diags([-1.0, 2.5, -1.0], [-1, 0, 1], shape=(n, n), format="csr")
+        f = Factor(A, "pardiso")
+        assert np.allclose(A @ f.solve(np.ones(n)), 1.0)
+        assert f._f.iparm[23] == (10 if n >= solvers.TWO_LEVEL_MIN_UNKNOWNS else 0)
+    outside = f._f.libmkl.MKL_Get_Max_Threads()
+    assert {t for size, t in threads if size < solvers.TWO_LEVEL_MIN_UNKNOWNS} == {1}
+    assert {t for size, t in threads if size >= solvers.TWO_LEVEL_MIN_UNKNOWNS} == {outside}
 
 
 @pytest.mark.skipif("pardiso" not in available_backends(), reason="pypardiso not installed")

@@ -355,8 +355,10 @@ def _pardiso_numeric(solver, T: sp.csr_matrix) -> bool:
 #: PARDISO runs on one thread for SPD systems of fewer unknowns than this (the thread that calls it only:
 #: :func:`pardiso_threads`); larger ones on all of MKL's threads. Small factorizations gain little from a second
 #: thread and lose much when the machine is busy (cow's atlas, 12k unknowns: 0.508 vs 0.368 s beside a process
-#: that kept one core busy, the same time when quiet; BENCHMARKS.md §26).
-PARDISO_SERIAL_BELOW = 20_000
+#: that kept one core busy, the same time when quiet; BENCHMARKS.md §26). Every classic factorization is below it
+#: (``TWO_LEVEL_MIN_UNKNOWNS``), so the polish's coarse levels run serial: at 22k / 44k unknowns on the shared 2-core
+#: machine 2× / 1.4× faster, the same bits (MKL_CBWR); the two-level factorizations above gained nothing serial.
+PARDISO_SERIAL_BELOW = TWO_LEVEL_MIN_UNKNOWNS
 
 
 @contextlib.contextmanager
