@@ -19,7 +19,7 @@ import heatparam
 from heatparam import datasets
 from heatparam.batching import discover, run_batch
 from heatparam.cli import main
-from heatparam.options import Options
+from heatparam.options import Options, to_cli_terms
 from heatparam.unwrap import unwrap_file
 
 from conftest import shared_mesh
@@ -111,6 +111,8 @@ def _check_outputs(root: Path, out: Path, expect: dict, refs: dict, statuses=("o
             assert r["vertices"] == rep["mesh"]["vertices"] and r["charts"] == rep["metrics"].get("charts", 1)
             assert (r["charts"] > 1) == rel.endswith("cow.off")  # the closed cow is an atlas, the rest one piece
             assert r["iso_mean"] == rep["metrics"]["iso_mean"] and r["flips"] == 0 and r["crossings"] == 0
+            assert r["warnings"] == " | ".join(to_cli_terms(w) for w in rep["warnings"])
+            assert ("an atlas of" in r["warnings"]) == rel.endswith("cow.off")
         else:
             assert r["status"] == status and r["reason"] and "\n" not in r["reason"], (rel, r)
             assert not (out / _obj_of(rel)).exists()
@@ -140,8 +142,9 @@ def test_local_cluster_equals_unwrap_and_resumes(library, tmp_path, capsys):
     # a rerun runs nothing: good meshes are up to date, the refused ones unchanged (still exit 1)
     mtimes = {p: p.stat().st_mtime_ns for p in out.rglob("*.obj")}
     t = time.perf_counter()
-    assert main(["batch", str(root), "-o", str(out), "--workers", "2", "--quiet"]) == 1
+    assert main(["batch", str(root), "-o", str(out), "--workers", "2"]) == 1
     assert time.perf_counter() - t < 10
+    assert "of the meshes flattened have warnings: see the warnings column of" in capsys.readouterr().err
     rows = _check_outputs(root, out, expect, refs, statuses=("skipped",))
     assert {p: p.stat().st_mtime_ns for p in out.rglob("*.obj")} == mtimes
     assert all(r["status"] in ("skipped", "refused") for r in rows.values())

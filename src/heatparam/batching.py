@@ -53,7 +53,7 @@ from pathlib import Path, PurePosixPath
 
 from heatparam.errors import HeatparamError, ResourceError
 from heatparam.job_server import JobServer, ServerPool, die_with_parent
-from heatparam.options import Options, make_options
+from heatparam.options import Options, make_options, to_cli_terms
 from heatparam.version import __version__
 
 #: Mesh suffixes searched in folders (heatparam.formats.MESH_SUFFIXES; a test checks they agree).
@@ -257,6 +257,7 @@ def _row_from_report(item: Item, out_dir: Path, status: str, report: dict, *, se
         "iso_mean": m.get("iso_mean"), "flips": m.get("flips"), "crossings": m.get("boundary_crossings"),
         "seconds": round(seconds if seconds is not None else man.get("seconds", 0.0), 3),
         "peak_mem_mb": peak_mb if peak_mb is not None else man.get("peak_mem_mb"),
+        "warnings": " | ".join(to_cli_terms(w) for w in report.get("warnings", [])),
     }
 
 
@@ -264,7 +265,7 @@ def _bad_row(item: Item, out_dir: Path, status: str, reason: str, *, seconds: fl
              peak_mb: float | None = None) -> dict:
     return {"input": str(item.input), "output": str(item.output(out_dir, "obj").relative_to(out_dir)),
             "status": status, "reason": reason, "vertices": None, "charts": None, "iso_mean": None, "flips": None,
-            "crossings": None, "seconds": round(seconds, 3), "peak_mem_mb": peak_mb}
+            "crossings": None, "seconds": round(seconds, 3), "peak_mem_mb": peak_mb, "warnings": ""}
 
 
 # ------------------------------------------------------------------------------------------ the per-mesh job

@@ -374,6 +374,10 @@ def cmd_batch(args: argparse.Namespace) -> int:
         print(f"heatparam: {len(summary['rows'])} meshes: {c['ok']} ok, {c['skipped']} up to date, "
               f"{c['refused']} refused, {c['failed']} failed in {summary['wall_s']:.1f} s → "
               f"{Path(args.output_dir) / 'summary.csv'}", file=sys.stderr)
+    warned = sum(1 for r in summary["rows"] if r["status"] in ("ok", "skipped") and r.get("warnings"))
+    if warned and not args.quiet:
+        print(f"heatparam: {warned} of the meshes flattened have warnings: see the warnings column of "
+              f"{Path(args.output_dir) / 'summary.csv'}", file=sys.stderr)
     for r in bad:  # the file named once (a reader's message names it already)
         where = "" if r["input"] in r["reason"] else f"{r['input']}: "
         print(f"heatparam: {r['status']}: {where}{to_cli_terms(r['reason'])}", file=sys.stderr)

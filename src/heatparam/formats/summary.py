@@ -10,9 +10,10 @@ from pathlib import Path
 
 from heatparam.formats.files import atomic_write, save_json
 
-#: The columns of a batch's rows (``summary.csv``'s header), one row per input.
+#: The columns of a batch's rows (``summary.csv``'s header), one row per input; ``warnings``: the mesh's report's
+#: warnings in command-line terms, joined by " | ".
 COLUMNS = ("input", "output", "status", "reason", "vertices", "charts", "iso_mean", "flips", "crossings",
-           "seconds", "peak_mem_mb")
+           "seconds", "peak_mem_mb", "warnings")
 
 
 def write_summary(out: Path, summary: dict) -> None:
