@@ -346,12 +346,17 @@ def test_a_scan_keeps_its_main_piece_whole_and_its_debris_apart():
     np.testing.assert_array_equal(r.uv_vertex[r.Fuv], F)
     scan_lines = [w for w in r.report["warnings"] if w.startswith("a scan:")]
     assert len(scan_lines) == 1 and "4 detached small piece(s)" in scan_lines[0] and "1 non-manifold" in scan_lines[0]
-    assert "the main piece's map stretches the surface" in scan_lines[0]  # as the disk's one-piece map would say
+    # as the disk's one-piece map would say
+    assert "the main piece's map stretches the surface" in scan_lines[0] and "remove them" in scan_lines[0]
     assert not any(w.startswith("an atlas of") for w in r.report["warnings"])
     assert "refine" in rep["components"][0]["pipeline"]["timings_s"]  # where the main piece's time went
     again = parameterize(V, F)
     np.testing.assert_array_equal(again.uv, r.uv)
     np.testing.assert_array_equal(again.Fuv, r.Fuv)
+    bowtie = parameterize(V, F[:cap_faces])  # the bowtie alone: one chart, no debris to remove
+    assert bowtie.report["method"]["atlas"]["totals"]["charts"] == 1
+    line = next(w for w in bowtie.report["warnings"] if w.startswith("a scan:"))
+    assert "1 non-manifold vertices split" in line and "detached" not in line and "remove" not in line, line
     for kw in ({"pack": "texture"}, {"max_distortion": 1.05}):
         b = parameterize(V, F, **kw).report["method"]["atlas"]
         assert "scan" not in b["repair"] and all(c["iso_mean"] <= 1.05 for c in b["charts"]), kw

@@ -471,9 +471,8 @@ def _scan_warning(debris: dict, split: int) -> str:
         parts.append(f"{debris['debris_components']} detached small piece(s) ({debris['debris_faces']} faces, "
                      f"{debris['debris_area_fraction']:.2%} of the area, each under "
                      f"{DEBRIS_AREA_SHARE:.0%} of the main piece's) charted apart in {debris['debris_charts']} "
-                     "chart(s)")
-    line = ("a scan: its main piece is one chart; " + (", ".join(parts) or "nothing split off")
-            + " (remove the debris in the scan software for a single chart)")
+                     "chart(s) (remove them in the scan software for a single chart)")
+    line = "a scan: its main piece is one chart; " + ("; ".join(parts) or "nothing split off")
     if debris["main_iso_mean"] > DEFAULT_MAX_DISTORTION:  # as a one-piece disk map says (pipeline.parameterize)
         line += (f"; the main piece's map stretches the surface: isometric distortion mean "
                  f"{debris['main_iso_mean']:.3f} (1 = none); max_distortion={DEFAULT_MAX_DISTORTION} cuts it into "
