@@ -250,7 +250,9 @@ class _ChartMaker:
         """A scan's debris: each piece of at least ``TINY_COMPONENT_FACES`` faces one chart when its LSCM layout,
         polished with the others' in one system, is bijective and within the bound (what the pipeline, one run
         per piece, decided before); the rest segmented together."""
-        whole = [ci for ci in self.debris if len(comps[ci].F) >= TINY_COMPONENT_FACES]
+        # (mds_start='always' asks for the pipeline on every chart: the segmented path runs it)
+        big = self.opts.mds_start != "always"
+        whole = [ci for ci in self.debris if big and len(comps[ci].F) >= TINY_COMPONENT_FACES]
         rest = [ci for ci in self.debris if ci not in whole]
         if whole:
             part, owner = union([comps[ci] for ci in whole], whole)
