@@ -29,3 +29,14 @@ def test_importing_the_compiled_loops_loads_no_numba():
             "print('numba' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_warming_up_compiles_the_atlas_loops_before_any_atlas():
+    code = ("import heatparam.pipeline.atlas_stage\n"
+            "from heatparam import compiled\n"
+            "atlas = lambda: [n for n in compiled.pending() if n.startswith('heatparam.atlas')]\n"
+            "before = atlas()\n"
+            "compiled.warm_all()\n"
+            "print(len(before) > 0, atlas())")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "True []"

@@ -4,7 +4,9 @@ heatparam and its libraries imported, each forking one child process per mesh.
 Why: each mesh runs in a process of its own, so that it can be held to a time and a memory limit and a crash loses
 that mesh alone; but a fresh Python process pays about half a second of start and imports, more than the whole work
 of a small mesh. A fork of a process that has already imported everything costs milliseconds. The server only
-imports: it never computes, because a library's thread pool (OpenMP, MKL) is not safe to fork once started.
+imports, and loads numba's compiled loops (``heatparam.compiled.warm_all``: they start no thread pool): it never
+computes with the numerical libraries, because a library's thread pool (OpenMP, MKL) is not safe to fork once
+started.
 
 Protocol (text lines over the server's stdin / stdout): ``import <modules>`` asks the server to import what a job
 needs beyond :data:`PRELOAD` (answer ``imported``); ``job <folder>`` forks a child that runs the job on that folder
@@ -27,6 +29,8 @@ import threading
 import traceback
 from collections.abc import Callable
 
+from heatparam import compiled
+
 #: Imported by every server before it says ready: what every job needs (the pipeline, its solvers, the readers).
 #: What only some jobs need (a format's library, the preview's pyplot) a job asks for (:meth:`JobServer.start`),
 #: once per server, so that a batch of plain meshes does not wait for them.
@@ -48,6 +52,8 @@ def serve(job: Callable[[str], None]) -> None:  # pragma: no cover - the server 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the children and the batch, not the server
     os.environ.setdefault("MPLBACKEND", "Agg")
     _import(PRELOAD)
+    with contextlib.suppress(Exception):  # (a loop that will not compile fails in the job, with its message)
+        compiled.warm_all()  # numba's loops, compiled, no thread pool started: children inherit them
     _say("ready")
     while line := sys.stdin.readline():
         if line.startswith("import "):  # modules a job asks for, imported here once rather than in each child

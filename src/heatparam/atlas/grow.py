@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from heatparam.atlas.chart_topology import Topology, glue_inside
-from heatparam.compiled import compiled
+from heatparam.compiled import compiled, warmup
 
 __all__ = ["DEFAULT_CONE", "farthest_seeds", "grow", "halves"]
 
@@ -288,3 +288,16 @@ def _vertex_used(topo: Topology, w: int, label: np.ndarray, r: int, skip: int) -
     fs, st = topo.vertex_faces()
     around = fs[st[w]:st[w + 1]]
     return bool(((label[around] == r) & (around != skip)).any())
+
+
+@warmup
+def _warm() -> None:
+    """The compiled loops run once on two triangles (:func:`heatparam.compiled.warm_all`)."""
+    F = np.array([[0, 1, 2], [2, 1, 3]], dtype=np.int64)
+    nrm = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]])
+    nb = np.array([[2, 1, 2], [0, 2, 2]], dtype=np.int64)  # face 2: the sentinel
+    indptr, indices = np.array([0, 1, 2], dtype=np.int64), np.array([1, 0], dtype=np.int64)
+    _farthest(indptr, indices, np.ones(2), 0, 2)
+    label = np.array([-1, -1, -2], dtype=np.int64)
+    vf, starts = np.array([0, 0, 1, 0, 1, 1], dtype=np.int64), np.array([0, 1, 3, 5, 6], dtype=np.int64)
+    _grow_regions(F, nrm, np.ones(2), nb, nb, vf, starts, label, np.arange(2), np.zeros(1, dtype=np.int64), 0.5)

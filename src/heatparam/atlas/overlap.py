@@ -14,7 +14,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from heatparam.compiled import compiled
+from heatparam.compiled import compiled, warmup
 from heatparam.mesh.topology import degenerate_faces
 
 __all__ = ["count_overlaps", "folded_zero_area", "overlapping_pairs", "uv_degenerate_faces"]
@@ -202,3 +202,9 @@ def overlapping_pairs(uv: np.ndarray, Fuv: np.ndarray) -> np.ndarray:
 def count_overlaps(uv: np.ndarray, Fuv: np.ndarray) -> int:
     """Number of triangle pairs of the atlas whose interiors intersect (:func:`overlapping_pairs`)."""
     return int(len(overlapping_pairs(uv, Fuv)))
+
+
+@warmup
+def _warm() -> None:
+    """The compiled loops run once on two overlapping triangles (:func:`heatparam.compiled.warm_all`)."""
+    overlapping_pairs(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.1, 0.1]]), np.array([[0, 1, 2], [3, 1, 2]]))
