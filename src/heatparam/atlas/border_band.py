@@ -17,14 +17,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from heatparam.atlas.overlap import count_overlaps
+from heatparam.atlas.overlap import ORIENT_ERRBOUND, count_overlaps
 from heatparam.atlas.repair import half_edge_opposites
 
 __all__ = ["border_band", "exact_overlap_count"]
 
-_EPS = np.finfo(np.float64).eps
-#: Shewchuk's error bound of the floating-point orientation (ccwerrboundA): a sign is certain beyond it
-_ORIENT_ERR = (3.0 + 16.0 * _EPS) * _EPS
 #: grid cells a border face's box may cover before the band gives up (the full count then): a bound on work only
 _MAX_CELLS_PER_BORDER_FACE = 64
 #: a face whose box covers more cells joins the band without a look (a larger band is still exact)
@@ -68,7 +65,7 @@ def _sure_signs(P: np.ndarray) -> np.ndarray:
     left = (P[:, 1, 0] - P[:, 0, 0]) * (P[:, 2, 1] - P[:, 0, 1])
     right = (P[:, 1, 1] - P[:, 0, 1]) * (P[:, 2, 0] - P[:, 0, 0])
     det = left - right
-    sure = np.abs(det) > _ORIENT_ERR * (np.abs(left) + np.abs(right))
+    sure = np.abs(det) > ORIENT_ERRBOUND * (np.abs(left) + np.abs(right))
     return np.where(sure, np.sign(det), 0.0)
 
 

@@ -17,10 +17,12 @@ import numpy as np
 from heatparam.compiled import compiled, warmup
 from heatparam.mesh.topology import degenerate_faces
 
-__all__ = ["count_overlaps", "folded_zero_area", "overlapping_pairs", "uv_degenerate_faces"]
+__all__ = ["ORIENT_ERRBOUND", "count_overlaps", "folded_zero_area", "overlapping_pairs", "uv_degenerate_faces"]
 
 _EPS = np.finfo(np.float64).eps
-_ERRBOUND = (3.0 + 16.0 * _EPS) * _EPS  # Shewchuk's ccwerrboundA
+#: Shewchuk's ccwerrboundA: a floating-point orientation farther from zero than this times the sum of its two
+#: products' magnitudes has the exact orientation's sign
+ORIENT_ERRBOUND = (3.0 + 16.0 * _EPS) * _EPS
 
 
 def _orient(ax, ay, bx, by, cx, cy) -> np.ndarray:
@@ -28,7 +30,7 @@ def _orient(ax, ay, bx, by, cx, cy) -> np.ndarray:
     left = (bx - ax) * (cy - ay)
     right = (by - ay) * (cx - ax)
     det = left - right
-    bound = _ERRBOUND * (np.abs(left) + np.abs(right))
+    bound = ORIENT_ERRBOUND * (np.abs(left) + np.abs(right))
     sign = np.sign(det)
     # exact zeros without arithmetic: c equals a or b (shared corners, shared edges)
     same = ((cx == ax) & (cy == ay)) | ((cx == bx) & (cy == by)) | ((ax == bx) & (ay == by))
@@ -120,7 +122,7 @@ def _orient_sign(ax, ay, bx, by, cx, cy):  # pragma: no cover - compiled
     left = (bx - ax) * (cy - ay)
     right = (by - ay) * (cx - ax)
     det = left - right
-    bound = _ERRBOUND * (abs(left) + abs(right))
+    bound = ORIENT_ERRBOUND * (abs(left) + abs(right))
     if bound > 0 and abs(det) <= bound:
         return 2
     return 1 if det > 0 else -1 if det < 0 else 0
