@@ -380,3 +380,17 @@ def test_comparable_parts_are_no_scan_and_keep_the_bound():
         _check_atlas(V, F, res, 1.05)
         assert "scan" not in res.report["repair"] and all(c["iso_mean"] <= 1.05 for c in res.report["charts"])
         assert sum(c["component"] == 0 for c in res.report["charts"]) > 1
+
+
+def test_a_scans_main_piece_shows_its_stages_when_progress_is_on(capsys):
+    """Minutes of a large scan are its main piece's pipeline: with progress its stage lines show (as a disk's
+    would), without progress nothing; a texture atlas, which may refuse that map, keeps them quiet."""
+    V, F, _ = _cap_scan()
+    parameterize(V, F, progress=True)
+    err = capsys.readouterr().err
+    assert "heatparam: refine (map without seams)" in err and "heatparam: atlas" in err
+    parameterize(V, F)
+    assert capsys.readouterr().err == ""
+    parameterize(V, F, progress=True, pack="texture")
+    err = capsys.readouterr().err
+    assert "heatparam: atlas" in err and "heatparam: refine" not in err

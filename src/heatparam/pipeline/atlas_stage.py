@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -97,7 +97,8 @@ class Chart:
 
 def atlas(V: np.ndarray, F: np.ndarray, flatten_disk: DiskFlattener, *, max_distortion: float | None = None,
           max_charts: int | None = None, pack: str = "scale", padding: float = 4.0, resolution: int = 1024,
-          texels_per_unit: float | None = None, seed: int = 0, **pipeline_options) -> AtlasResult:
+          texels_per_unit: float | None = None, seed: int = 0, progress: bool = False,
+          **pipeline_options) -> AtlasResult:
     """A bijective, near-isometric atlas of any triangle mesh (module docstring).
 
     Parameters
@@ -118,6 +119,8 @@ def atlas(V: np.ndarray, F: np.ndarray, flatten_disk: DiskFlattener, *, max_dist
     padding, resolution : gutter in pixels of a ``resolution``² texture (``texture``).
     texels_per_unit : ``texture``: pixels per model unit for every chart (None: the largest that fits).
     seed : seeds the farthest-point seeds and the pipeline.
+    progress : a scan's main piece kept whole whatever its distortion shows its stages' lines as the pipeline's do
+        (its minutes are the atlas's; the charts' many small runs stay quiet).
     pipeline_options : :class:`~heatparam.options.Options` fields for every chart's flattening.
     """
     t0 = time.perf_counter()
@@ -134,7 +137,8 @@ def atlas(V: np.ndarray, F: np.ndarray, flatten_disk: DiskFlattener, *, max_dist
     # a scan's main piece is one piece in pattern mode, as a disk is (parameterize); a texture bounds it
     main_bound = None if max_distortion is None and pack == "scale" else bound
     maker = _ChartMaker(flatten_disk, make_options(None, **opts), bound, whole_first=max_distortion is None,
-                        max_charts=max_charts, seed=seed, main_bound=main_bound)
+                        max_charts=max_charts, seed=seed, main_bound=main_bound,
+                        main_progress=progress and main_bound is None)
     components, tiny = maker.components(rep.components)
     debris = maker.debris_report(rep.components)
     t_flat = time.perf_counter() - t0
@@ -161,7 +165,7 @@ def atlas_result(V: np.ndarray, F: np.ndarray, opts: Options, *, why: str, flatt
     pipeline_options = {k: v for k, v in o.items() if k not in ATLAS_FIELDS and k != "seed"}
     res = atlas(V, F, flatten_disk, max_distortion=opts.max_distortion or None, max_charts=opts.max_charts or None,
                 pack=opts.pack, padding=opts.padding, resolution=opts.resolution,
-                texels_per_unit=opts.texels_per_unit or None, seed=opts.seed,
+                texels_per_unit=opts.texels_per_unit or None, seed=opts.seed, progress=opts.progress,
                 **pipeline_options)
     summary = dict(res.summary)
     summary["stress_rel_rms"] = None
@@ -195,12 +199,15 @@ class _ChartMaker:
     flatten_disk : the pipeline on one disk. opts : the Options of every chart's flattening. bound : the charts'
     distortion bound. whole_first : try each component whole first (no bound asked for). max_charts : the cap on
     each component's charts. seed : the segmentation's seeds. main_bound : the bound on a scan's main piece kept
-    whole (None: any distortion). After :meth:`components`, ``main`` is the scan's main piece kept whole (None
-    when the mesh is no scan or its main piece was segmented) and ``debris`` the other components."""
+    whole (None: any distortion). main_progress : the main piece's pipeline shows its stages (the map kept whatever
+    its distortion, so its lines are those of the map written). After :meth:`components`, ``main`` is the scan's
+    main piece kept whole (None when the mesh is no scan or its main piece was segmented) and ``debris`` the other
+    components."""
 
     def __init__(self, flatten_disk: DiskFlattener, opts: Options, bound: float, *, whole_first: bool,
-                 max_charts: int | None, seed: int, main_bound: float | None = None):
+                 max_charts: int | None, seed: int, main_bound: float | None = None, main_progress: bool = False):
         self.flatten_disk, self.opts, self.bound = flatten_disk, opts, bound
+        self.main_opts = replace(opts, progress=main_progress)
         self.whole_first, self.max_charts, self.seed, self.main_bound = whole_first, max_charts, seed, main_bound
         self.polish = None if opts.refine == "none" else RefineParams.from_options(opts)
         self.charts: list[Chart] = []
@@ -235,7 +242,7 @@ class _ChartMaker:
         main = scan_main(comps)
         if main is None:
             return None
-        whole = self.whole(comps[main], main, self.main_bound)
+        whole = self.whole(comps[main], main, self.main_bound, self.main_opts)
         if whole is None:
             return main
         self.main, self.debris = main, [ci for ci in range(len(comps)) if ci != main]
@@ -296,12 +303,12 @@ class _ChartMaker:
                            f"with_the_{label}": True}
         reports[ids[0]][f"{label}_together"] = {"components": len(ids), **stats}
 
-    def whole(self, comp: Component, ci: int, bound: float | None) -> Chart | None:
+    def whole(self, comp: Component, ci: int, bound: float | None, opts: Options | None = None) -> Chart | None:
         """A component that is a single disk (not nearly closed), flattened whole by the pipeline (which validates
         it), as one chart when its map is bijective and within ``bound`` (None: any distortion); None otherwise (it
-        is segmented like any other)."""
+        is segmented like any other). ``opts``: the pipeline's options (default the charts')."""
         try:
-            res = self.flatten_disk(comp.V, comp.F, self.opts)
+            res = self.flatten_disk(comp.V, comp.F, opts or self.opts)
         except HeatparamError:
             return None
         met = res.report["metrics"]
