@@ -377,3 +377,18 @@ def test_ctrl_c_then_resume(tmp_path):
     rows = json.loads((out / "summary.json").read_text())["rows"]
     assert {r["input"] for r in rows if r["status"] == "skipped"} == done
     assert all(r["status"] == "ok" for r in rows if r["input"] not in done)
+
+
+def test_batch_units_as_unwraps(tmp_path):
+    """--units names every mesh's unit as unwrap's does (no 'mm assumed'); a rerun with other units redoes it."""
+    src = shared_mesh("halftunnel.off")
+    out = tmp_path / "out"
+    assert main(["batch", str(src), "-o", str(out), "--format", "obj,svg", "--workers", "1", "--quiet",
+                 "--units", "cm"]) == 0
+    assert main(["unwrap", str(src), "-o", str(tmp_path / "u.svg"), "--quiet", "--units", "cm"]) == 0
+    assert next(out.rglob("halftunnel.svg")).read_bytes() == (tmp_path / "u.svg").read_bytes()
+    rep = json.loads(next(out.rglob("halftunnel.json")).read_text())
+    assert rep["units"] == "cm" and rep["units_assumed"] is False
+    assert main(["batch", str(src), "-o", str(out), "--format", "obj,svg", "--workers", "1", "--quiet",
+                 "--units", "in"]) == 0
+    assert json.loads(next(out.rglob("halftunnel.json")).read_text())["units"] == "in"

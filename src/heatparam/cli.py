@@ -142,6 +142,8 @@ def _add_batch_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"formats: {','.join(batch_formats())} (default: %(default)s)")
     g.add_argument("--preview", action="store_true", help="also write <stem>.png previews (in index.html)")
     g.add_argument("--force", action="store_true", help="redo inputs whose outputs are up to date")
+    g.add_argument("--units", choices=UNITS, help="the models' units, as unwrap's --units, for every mesh "
+                   "(default: mm, with a warning per mesh under 10 mm or over 100 m across)")
     g = p.add_argument_group("cluster")
     g.add_argument("--workers", type=_positive_int, metavar="N",
                    help="local Dask worker processes (default: one per core)")
@@ -363,7 +365,8 @@ def cmd_batch(args: argparse.Namespace) -> int:
         summary = run_batch(args.inputs, args.output_dir, formats=args.format, force=args.force,
                             workers=args.workers, scheduler=args.scheduler, task_timeout=args.task_timeout,
                             task_memory=args.task_memory, preview=args.preview, progress=not args.quiet,
-                            options=make_options(**{o.name: getattr(args, o.name) for o in cli_options()}))
+                            options=make_options(**{o.name: getattr(args, o.name) for o in cli_options()},
+                                                 **({"unit_name": args.units} if args.units else {})))
     except KeyboardInterrupt:
         print(f"heatparam: interrupted: the meshes in flight were dropped; {args.output_dir}/summary.json lists "
               "what is done — rerun the same command to resume", file=sys.stderr)

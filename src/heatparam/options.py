@@ -363,7 +363,8 @@ _DOCS_INTRO = (
     "the heat method's: `--time-step`, `--t-coef`, `--solver`); `--help` shows one line each. The output flags "
     "(`-o`, `--units`, `--sheet`, `--gap`, `--grain`, `--nest-time`, `--strain-map`, `--fit-tolerance`, "
     "`--report`, `--preview`) are described in [formats.md](formats.md), `heatparam batch`'s own (`--workers`, "
-    "`--scheduler`, `--task-timeout`, `--task-memory`, `--format`, `--force`) by `heatparam batch --help`; "
+    "`--scheduler`, `--task-timeout`, `--task-memory`, `--format`, `--force`, `--units` as unwrap's) by "
+    "`heatparam batch --help`; "
     "`--quiet` silences the progress lines. Paths (docs/fill.md) are relative to the repository's root; section "
     "signs after BENCHMARKS name sections of BENCHMARKS.md, or of docs/history.md where the label moved there (the "
     "fill's section 2.5 is the paper's).")
