@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from heatparam.atlas.overlap import ORIENT_ERRBOUND, count_overlaps
+from heatparam.atlas.overlap import count_overlaps, float_orientation
 from heatparam.atlas.repair import half_edge_opposites
 
 __all__ = ["border_band", "exact_overlap_count"]
@@ -62,11 +62,8 @@ def border_band(uv: np.ndarray, Fuv: np.ndarray) -> np.ndarray | None:
 
 def _sure_signs(P: np.ndarray) -> np.ndarray:
     """(m,) the orientation sign (-1, 1) of each UV triangle (m,3,2), 0 where it is zero or not certain."""
-    left = (P[:, 1, 0] - P[:, 0, 0]) * (P[:, 2, 1] - P[:, 0, 1])
-    right = (P[:, 1, 1] - P[:, 0, 1]) * (P[:, 2, 0] - P[:, 0, 0])
-    det = left - right
-    sure = np.abs(det) > ORIENT_ERRBOUND * (np.abs(left) + np.abs(right))
-    return np.where(sure, np.sign(det), 0.0)
+    det, bound = float_orientation(P[:, 0, 0], P[:, 0, 1], P[:, 1, 0], P[:, 1, 1], P[:, 2, 0], P[:, 2, 1])
+    return np.where(np.abs(det) > bound, np.sign(det), 0.0)
 
 
 def _near(lo: np.ndarray, hi: np.ndarray, border: np.ndarray) -> np.ndarray | None:

@@ -17,7 +17,8 @@ import numpy as np
 from heatparam.compiled import compiled, warmup
 from heatparam.mesh.topology import degenerate_faces
 
-__all__ = ["ORIENT_ERRBOUND", "count_overlaps", "folded_zero_area", "overlapping_pairs", "uv_degenerate_faces"]
+__all__ = ["ORIENT_ERRBOUND", "count_overlaps", "float_orientation", "folded_zero_area", "overlapping_pairs",
+           "uv_degenerate_faces"]
 
 _EPS = np.finfo(np.float64).eps
 #: Shewchuk's ccwerrboundA: a floating-point orientation farther from zero than this times the sum of its two
@@ -25,12 +26,17 @@ _EPS = np.finfo(np.float64).eps
 ORIENT_ERRBOUND = (3.0 + 16.0 * _EPS) * _EPS
 
 
-def _orient(ax, ay, bx, by, cx, cy) -> np.ndarray:
-    """Sign (-1, 0, 1) of the orientation of (a, b, c), exact (arrays of equal shape)."""
+def float_orientation(ax, ay, bx, by, cx, cy) -> tuple[np.ndarray, np.ndarray]:
+    """The orientation determinant of (a, b, c) in floating point and its rounding error bound (arrays of equal
+    shape): where |det| exceeds the bound, its sign is the exact orientation's."""
     left = (bx - ax) * (cy - ay)
     right = (by - ay) * (cx - ax)
-    det = left - right
-    bound = ORIENT_ERRBOUND * (np.abs(left) + np.abs(right))
+    return left - right, ORIENT_ERRBOUND * (np.abs(left) + np.abs(right))
+
+
+def _orient(ax, ay, bx, by, cx, cy) -> np.ndarray:
+    """Sign (-1, 0, 1) of the orientation of (a, b, c), exact (arrays of equal shape)."""
+    det, bound = float_orientation(ax, ay, bx, by, cx, cy)
     sign = np.sign(det)
     # exact zeros without arithmetic: c equals a or b (shared corners, shared edges)
     same = ((cx == ax) & (cy == ay)) | ((cx == bx) & (cy == by)) | ((ax == bx) & (ay == by))
