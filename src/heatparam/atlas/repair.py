@@ -10,6 +10,7 @@ Vertices no face references ("loose points") are kept and reported.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -17,7 +18,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from heatparam.errors import MeshError
-from heatparam.mesh.topology import degenerate_faces, unique_inverse
+from heatparam.mesh.topology import degenerate_faces, face_areas, unique_inverse
 from heatparam.mesh.validate import ALL_ZERO_AREA, check_arrays, check_edges, check_vertex_fans, edge_structure
 
 __all__ = ["Component", "Repair", "half_edge_opposites", "repair", "union"]
@@ -36,6 +37,11 @@ class Component:
     F: np.ndarray
     faces: np.ndarray
     vertex: np.ndarray
+
+    @functools.cached_property
+    def area(self) -> float:
+        """Its 3D surface area, computed once."""
+        return float(face_areas(self.V, self.F).sum())
 
 
 @dataclass

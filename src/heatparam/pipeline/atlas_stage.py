@@ -44,7 +44,7 @@ from heatparam.atlas.polish import polish_charts
 from heatparam.atlas.repair import Component, Repair, half_edge_opposites, repair, union
 from heatparam.atlas.segment import Segmentation, proxy_bound, segment
 from heatparam.errors import HeatparamError
-from heatparam.mesh.topology import degenerate_faces, face_areas
+from heatparam.mesh.topology import degenerate_faces
 from heatparam.mesh.validate import as_arrays
 from heatparam.options import Options, make_options
 from heatparam.pipeline.report import Result, envelope
@@ -283,7 +283,7 @@ class _ChartMaker:
         debris (components, faces, share of the mesh's area, charts)."""
         if self.main is None:
             return None
-        area = np.array([face_areas(c.V, c.F).sum() for c in comps])
+        area = np.array([c.area for c in comps])
         charts = sum(c.component != self.main for c in self.charts)
         main_iso = next(c.info["iso_mean"] for c in self.charts if c.component == self.main)
         return {"main_component": self.main, "main_faces": int(len(comps[self.main].F)), "main_iso_mean": main_iso,
@@ -406,7 +406,7 @@ def scan_main(comps: list[Component]) -> int | None:
     ``DEBRIS_AREA_SHARE`` of its area (islands, fins cut off at bowties, crumbs); None when the mesh has two or
     more comparable parts (each is then charted within the bound). An area share, not a face count: a scan's
     density says nothing of what is a part; its area does."""
-    areas = np.array([face_areas(c.V, c.F).sum() for c in comps])
+    areas = np.array([c.area for c in comps])
     main = int(np.argmax(areas))
     return main if (np.delete(areas, main) < DEBRIS_AREA_SHARE * areas[main]).all() else None
 
