@@ -28,7 +28,7 @@ from heatparam.heat import check_time_step
 from heatparam.memory import require
 from heatparam.mesh.validate import as_arrays
 from heatparam.options import Options, make_options
-from heatparam.pipeline.atlas_stage import DEFAULT_MAX_DISTORTION, atlas_result
+from heatparam.pipeline.atlas_stage import DEFAULT_MAX_DISTORTION, atlas_result, stretch_note
 from heatparam.pipeline.heat_stage import FillSurface, Layout, decide_fill, mds_map
 from heatparam.pipeline.report import Flat, Result, build_report, map_metrics, method_report
 from heatparam.pipeline.seams import seam_pause, seams_stage
@@ -91,9 +91,7 @@ def _warn_if_stretched(report: dict, prog: Progress) -> None:
     """A one-piece map stretched past the atlas's bound: say so, and how to get pieces within it."""
     m = report["metrics"]
     if m["iso_mean"] > DEFAULT_MAX_DISTORTION:
-        w = (f"the one-piece map stretches the surface: isometric distortion mean {m['iso_mean']:.3f}, p95 "
-             f"{m['iso_p95']:.3f} (1 = none); max_distortion={DEFAULT_MAX_DISTORTION} cuts it into pieces within "
-             f"{DEFAULT_MAX_DISTORTION}")
+        w = stretch_note("the one-piece map", m["iso_mean"], m["iso_p95"])
         report["warnings"].append(w)
         prog.warn(w)
 

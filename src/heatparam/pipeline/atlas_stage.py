@@ -51,7 +51,7 @@ from heatparam.pipeline.report import Result, envelope
 from heatparam.refine import RefineParams
 
 __all__ = ["ATLAS_FIELDS", "AtlasResult", "Chart", "DEBRIS_AREA_SHARE", "DEFAULT_MAX_DISTORTION", "DiskFlattener",
-           "TINY_COMPONENT_FACES", "atlas", "atlas_result", "scan_main"]
+           "TINY_COMPONENT_FACES", "atlas", "atlas_result", "scan_main", "stretch_note"]
 
 #: isometric distortion bound per chart (area-weighted mean of max(s1, 1/s2)); measured in BENCHMARKS.md
 DEFAULT_MAX_DISTORTION = 1.05
@@ -483,7 +483,13 @@ def _scan_warning(debris: dict, split: int) -> str:
                      "chart(s) (remove them in the scan software for a single chart)")
     line = "a scan: its main piece is one chart; " + ("; ".join(parts) or "nothing split off")
     if debris["main_iso_mean"] > DEFAULT_MAX_DISTORTION:  # as a one-piece disk map says (pipeline.parameterize)
-        line += (f"; the main piece's map stretches the surface: isometric distortion mean "
-                 f"{debris['main_iso_mean']:.3f} (1 = none); max_distortion={DEFAULT_MAX_DISTORTION} cuts it into "
-                 f"pieces within {DEFAULT_MAX_DISTORTION}")
+        line += "; " + stretch_note("the main piece's map", debris["main_iso_mean"])
     return line
+
+
+def stretch_note(subject: str, iso_mean: float, iso_p95: float | None = None) -> str:
+    """The note on a one-piece map stretched past ``DEFAULT_MAX_DISTORTION``: how much, and the option that cuts it
+    into pieces within the bound (a disk's map, a scan's main piece)."""
+    p95 = "" if iso_p95 is None else f", p95 {iso_p95:.3f}"
+    return (f"{subject} stretches the surface: isometric distortion mean {iso_mean:.3f}{p95} (1 = none); "
+            f"max_distortion={DEFAULT_MAX_DISTORTION} cuts it into pieces within {DEFAULT_MAX_DISTORTION}")
