@@ -488,11 +488,10 @@ def _farther(x: np.ndarray, d: np.ndarray, loops: list[np.ndarray], sc: Scaffold
              w_surf: np.ndarray, step: tuple[float, float], tbar: float) -> tuple[float, float]:
     """A line search that doubled up to ``LINE_SEARCH_MAX`` goes on doubling the step (t, its energy) while that
     lowers the surface energy, within the flip barrier ``tbar`` and as far as the chained scaffolds allow
-    (``feasible_step``, asked only when the next doubling lowers the energy). A start with a nearly degenerate
-    triangle (a zero-area face mollified, flattened to 1e-11 of its rest area by a coarse level) is steep in the
-    1/det² terms: the Newton step grows that det by a third, so 40 iterations (189 s at 387k faces) went to one
-    face; doubling on, 3 iterations to a lower energy. Where twice the cap does not lower the energy the step is
-    the capped search's (most iterations: 14 of the 21 maps of bench/hash_maps.py kept every bit)."""
+    (``feasible_step``, asked only when the next doubling lowers the energy). Why: a start with a nearly degenerate
+    triangle (a mollified zero-area face that a coarse level flattened almost to nothing) is steep in the 1/det²
+    terms, and a Newton step grows that det by only a third, so a capped search spends dozens of iterations on one
+    face. Where twice the cap does not lower the energy the step is the capped search's."""
     t, E1 = step
     if not 2 * t <= tbar:
         return step
