@@ -17,6 +17,7 @@ import numpy as np
 
 from heatparam.errors import HeatparamError
 from heatparam.layout.conformal import SCP_CUT_MAX_ITERS
+from heatparam.layout.projection import projection_layout
 from heatparam.mesh.seams import cut_open, hole_seams
 from heatparam.mesh.validate import validate_mesh
 from heatparam.options import SEAM_MIN_GAIN, SEAM_PAUSE_EXCESS, SEAM_PAUSE_FLOOR, SEAM_TRY_EXCESS
@@ -92,6 +93,9 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat, flatten: Cal
             x, rep["conformal_reopened"] = _reopened_conformal(cut.surface, cut.source)
         if x is not None:
             starts["conformal_reopened"] = x
+        x, rep["projection_reopened"] = _reopened_projection(cut.surface, cut.source)
+        if x is not None:
+            starts["projection_reopened"] = x
     # the cut map, when paused, keeps its factorization: it is usually kept and finished next (4.5 s to rebuild
     # at 311k vertices); when the map without seams is kept instead, the cut map is dropped first
     pausing = Pausing(seam_pause(surface, opts).excess, park=False)
@@ -172,6 +176,17 @@ def _reopened_conformal(cut_surface: Surface, source: np.ndarray) -> tuple[np.nd
         return None, {"reason": f"no conformal layout ({exc})"}
     if not np.isfinite(uv).all():
         return None, {"reason": "the conformal layout has non-finite coordinates"}
+    return reopen_crossing_slits(uv, cut_surface.F, source)
+
+
+def _reopened_projection(cut_surface: Surface, source: np.ndarray) -> tuple[np.ndarray | None, dict]:
+    """The cut surface's projection onto its mean plane (``layout.projection``), where every slit is closed (its
+    two sides project onto each other), with its slits reopened (``refine.reopen_slits``): the start candidate
+    ``"projection_reopened"`` of a height-field-like part; (layout or None, the report's ``seams.projection_reopened``).
+    """
+    uv = projection_layout(cut_surface.V, cut_surface.F)
+    if uv is None:
+        return None, {"reason": "the faces' normals sum to zero: no mean plane"}
     return reopen_crossing_slits(uv, cut_surface.F, source)
 
 

@@ -41,11 +41,11 @@ def _inward_normals(uv: np.ndarray, bnd: np.ndarray) -> np.ndarray:
     return out
 
 
-def _push_apart(uv: np.ndarray, F: np.ndarray, bnd: np.ndarray, moved: np.ndarray) -> tuple[np.ndarray | None, dict]:
-    """Push the seam-vertex copies ``moved`` (k,) of the layout ``uv`` (n,2), whose faces are all positive,
-    ``SLIT_STEP`` × their shortest edge along the inward normal of the boundary ``bnd`` (k,2)
-    (``mesh.topology.boundary_edges``) at them, halving the step of the vertices of any face left with less than
-    ``SLIT_MIN_AREA_FRACTION`` of its area; (layout or None, report)."""
+def push_apart(uv: np.ndarray, F: np.ndarray, bnd: np.ndarray, moved: np.ndarray) -> tuple[np.ndarray | None, dict]:
+    """Push the vertex copies ``moved`` (k,) (of seam vertices, or of a vertex the repair split, lying on one point)
+    of the layout ``uv`` (n,2), whose faces are all positive, ``SLIT_STEP`` × their shortest edge along the inward
+    normal of the boundary ``bnd`` (k,2) (``mesh.topology.boundary_edges``) at them, halving the step of the
+    vertices of any face left with less than ``SLIT_MIN_AREA_FRACTION`` of its area; (layout or None, report)."""
     n = len(uv)
     normal = _inward_normals(uv, bnd)[moved]
     norm = np.linalg.norm(normal, axis=1)
@@ -136,7 +136,7 @@ def reopen_crossing_slits(uv: np.ndarray, F: np.ndarray, source: np.ndarray) -> 
         if (signed_areas(y, F[is_moved[F].any(axis=1)]) <= 0).any():
             report["reason"] = "closing the slits flips a face"
             continue
-        x, rep = _push_apart(y, F, bnd, moved)
+        x, rep = push_apart(y, F, bnd, moved)
         report.update(rep)
         if x is not None:
             report.pop("reason", None)
@@ -144,4 +144,4 @@ def reopen_crossing_slits(uv: np.ndarray, F: np.ndarray, source: np.ndarray) -> 
     return None, report
 
 
-__all__ = ["reopen_crossing_slits"]
+__all__ = ["push_apart", "reopen_crossing_slits"]

@@ -1,7 +1,8 @@
-"""The refinement's start: the bijective one of the MDS and conformal layouts with the lower energy, else Tutte.
+"""The refinement's start: the bijective one of the MDS, conformal and mean-plane projection layouts with the lowest
+energy, else Tutte.
 
 Every candidate is judged once, here: flipped faces, boundary crossings and holes turned inside out, energy (1 =
-isometry). An MDS or conformal layout with a few flipped faces is repaired first (:func:`repaired_layout`).
+isometry). A layout with a few flipped faces is repaired first (:func:`repaired_layout`).
 """
 
 from __future__ import annotations
@@ -14,11 +15,13 @@ import numpy as np
 from heatparam import metrics
 from heatparam.errors import HeatparamError
 from heatparam.layout.conformal import conformal_layout
+from heatparam.layout.projection import projection_layout
 from heatparam.layout.tutte import Disk, tutte
-from heatparam.mesh.topology import boundary_loops
+from heatparam.mesh.topology import boundary_edges, boundary_loops
 from heatparam.options import ISOMETRIC_START_EXCESS
 from heatparam.refine.energy import det, jacobians, normalized_energy, surface_gradients
 from heatparam.refine.multilevel import repair_flips
+from heatparam.refine.reopen_slits import push_apart
 
 
 def bijectivity(uv: np.ndarray, F: np.ndarray, g: np.ndarray) -> tuple[int, int]:
@@ -102,10 +105,11 @@ def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk
                  lscm: LscmStart | None, conformal: Callable[[], np.ndarray] | None, backend: str,
                  extra: dict[str, np.ndarray] | None = None) -> tuple[np.ndarray, dict]:
     """The polish's start: of the MDS layout ``uv`` (n,2) (a few flipped faces repaired: :func:`repaired_layout`;
-    None = not computed), the conformal layout (``lscm`` if given, else :func:`lscm_start`) and the ``extra`` named
-    layouts (n,2) (e.g. ``"conformal_reopened"``: the cut mesh's conformal layout, its crossing slits reopened),
-    the bijective one (no flipped face, no crossing of any boundary loop) with the lowest energy; if none is
-    bijective, Tutte's embedding of the disk. Returns (layout (n,2), the report's ``start`` part)."""
+    None = not computed), the conformal layout (``lscm`` if given, else :func:`lscm_start`), the projection onto
+    the mean plane (``layout.projection``, repaired likewise) and the ``extra`` named layouts (n,2) (e.g.
+    ``"conformal_reopened"``: the cut mesh's conformal layout, its crossing slits reopened), the bijective one (no
+    flipped face, no crossing of any boundary loop) with the lowest energy; if none is bijective, Tutte's embedding
+    of the disk. Returns (layout (n,2), the report's ``start`` part)."""
     if lscm is None:
         lscm = lscm_start(V, F, conformal, (g, area))
     cands: dict[str, np.ndarray] = {}
@@ -132,6 +136,9 @@ def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk
         report["conformal_repair"] = lscm.repair
     if lscm.energy is not None:
         cands["conformal"], energies["conformal"] = lscm.uv, lscm.energy
+    xp, report["projection"] = _projection(V, F, g, disk)
+    if xp is not None:
+        cands["projection"], energies["projection"] = xp, normalized_energy(xp, F, g, area)
     for name, xe in (extra or {}).items():
         xe = np.asarray(xe, dtype=np.float64)
         flips, cross = bijectivity(xe, F, g)
@@ -152,4 +159,33 @@ def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk
         raise HeatparamError("the refinement's start layouts (MDS, conformal, Tutte) all have non-finite coordinates: "
                              "is the mesh degenerate?")
     report["layout"] = start
+    return x, report
+
+
+def _projection(V: np.ndarray, F: np.ndarray, g: np.ndarray, disk: Disk) -> tuple[np.ndarray | None, dict]:
+    """The projection onto the mean plane (``layout.projection``) as a start candidate: (the layout when it is
+    bijective, a few flipped faces repaired as MDS's are, else None; the report's ``start.projection``). Boundary
+    vertices the projection puts on one point (the copies of a vertex that the atlas's repair split, at one 3D
+    position) are pushed into their own sides first (``reopen_slits.push_apart``): the scaffold needs distinct
+    boundary points."""
+    x = projection_layout(V, F)
+    if x is None:
+        return None, {"reason": "the faces' normals sum to zero: no mean plane"}
+    flips, cross = bijectivity(x, F, g)
+    report: dict = {"flips": flips, "crossings": cross}
+    if flips:
+        x, report["repair"] = repaired_layout(x, F, g, disk.loops)
+        if x is None:
+            return None, report
+        report["crossings"] = cross = 0
+    if cross:
+        return None, report
+    bnd = np.concatenate(disk.loops)
+    _, at, count = np.unique(x[bnd], axis=0, return_inverse=True, return_counts=True)
+    shared = bnd[count[at.ravel()] > 1]
+    if len(shared):
+        report["separated"] = int(len(shared))
+        x, pushed = push_apart(x, F, boundary_edges(F), shared)
+        if x is None:
+            return None, report | {"reason": pushed["reason"]}
     return x, report
