@@ -42,6 +42,18 @@ def mollify(lengths: np.ndarray, delta: float) -> tuple[np.ndarray, float]:
     return (lengths + eps if eps > 0 else lengths), eps
 
 
+#: The mollification slack of :func:`mollified_lengths`, relative to the mean edge length (``build_operators``'s
+#: default ``delta`` too)
+MOLLIFY_REL = 1e-4
+
+
+def mollified_lengths(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Edge lengths (m,3) of (V, F), mollified (:func:`mollify`) by ``MOLLIFY_REL`` × their mean: the intrinsic
+    triangles the polish and the conformal layout take for zero-area faces."""
+    raw = edge_lengths(V, F)
+    return mollify(raw, MOLLIFY_REL * float(raw.mean()))[0]
+
+
 def intrinsic_areas(lengths: np.ndarray) -> np.ndarray:
     """Triangle areas (m,) from edge lengths by Heron's formula (stable form)."""
     a, b, c = np.sort(lengths, axis=1)[:, ::-1].T  # a ≥ b ≥ c
@@ -172,7 +184,7 @@ class Operators:
 
 
 def build_operators(V: np.ndarray, F: np.ndarray, mass: str = "lumped", delaunay: bool = True,
-                    delta: float = 1e-4) -> Operators:
+                    delta: float = MOLLIFY_REL) -> Operators:
     """Precompute L, B, G, div for (V (n,3), F (m,3)).
 
     delaunay : build the operators on the intrinsic Delaunay triangulation of the same surface (Bobenko &

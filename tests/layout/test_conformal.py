@@ -6,7 +6,7 @@ import pytest
 
 from heatparam import datasets
 from heatparam.layout.conformal import SCP_TOL, conformal_layout, spectral_conformal
-from heatparam.mesh.topology import boundary_loops
+from heatparam.mesh.topology import boundary_loops, degenerate_faces
 from heatparam.refine.start import lscm_start
 
 
@@ -127,3 +127,24 @@ def test_max_solves_caps_the_iteration(method):
     full, k_full = spectral_conformal(s.V, s.F, method=method)
     assert k_full > 2
     assert np.abs(uv - full).max() < 0.5 * np.ptp(full, axis=0).max()
+
+
+def _with_border_sliver(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(V, F) with a zero-area face on a boundary edge (a, b): its midpoint m splits a b's face in two, and the
+    face (b, m, a), flat on the segment, takes the edge over (the slivers of the large-part family's scans)."""
+    a, b = boundary_loops(F)[0][:2]  # a → b as oriented in its face
+    f = int(np.flatnonzero(((F == a) | (F == b)).sum(axis=1) == 2)[0])
+    c = int(np.setdiff1d(F[f], [a, b])[0])
+    m = len(V)
+    F2 = np.vstack([np.delete(F, f, axis=0), [[a, m, c], [m, b, c], [b, m, a]]])
+    return np.vstack([V, 0.5 * (V[a] + V[b])]), F2
+
+
+def test_zero_area_faces_take_the_mollified_cotangents():
+    s = datasets.cylinder_patch()
+    V, F = _with_border_sliver(s.V, s.F)
+    assert degenerate_faces(V, F).sum() == 1 and not np.isfinite(igl.cotmatrix(V, F).data).all()
+    uv = conformal_layout(V, F)
+    assert np.isfinite(uv).all()
+    st = lscm_start(V, F, lambda: uv)  # a start the polish can take: bijective once the sliver is repaired
+    assert st.energy is not None and st.near_isometric

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from heatparam.operators import edge_lengths, intrinsic_areas, local_triangles, mollify
+from heatparam.operators import intrinsic_areas, local_triangles, mollified_lengths
 
 
 def hat_gradients(P: np.ndarray) -> np.ndarray:
@@ -212,6 +212,5 @@ def _entries(J: np.ndarray, g: np.ndarray, w: np.ndarray, grad: np.ndarray, out:
 
 def surface_gradients(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Hat gradients (m,3,2) of each 3D triangle in its own frame, and the areas (m,) (mollified lengths)."""
-    raw = edge_lengths(V, F)
-    lengths, _ = mollify(raw, 1e-4 * float(raw.mean()))
+    lengths = mollified_lengths(V, F)
     return hat_gradients(local_triangles(lengths)), intrinsic_areas(lengths)
