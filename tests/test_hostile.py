@@ -307,7 +307,8 @@ def test_thin_limbs_with_slivers_fall_back_to_tutte(tmp_path, limbs):
 
     r = json.loads(rep.read_text())
     start = r["method"]["refine"]["start"]
-    assert start["layout"] == "tutte" and "conformal_failed" in start
+    # the slivers' conformal layout (mollified cotangents) folds beyond repair, as it failed before mollification
+    assert start["layout"] == "tutte" and ("conformal_failed" in start or start["conformal_flips"] > 0)
     # MDS is no start either: non-finite (degenerate faces) or, since the operators keep every intrinsic triangle
     # valid (operators._consistent_lengths), folded beyond repair
     assert "mds_rejected" in start or (start["flips"] > 0 and not start["repair"]["repaired"])

@@ -523,3 +523,52 @@ def test_a_stretched_one_piece_map_says_how_to_get_pieces():
     assert f"{cap.report['metrics']['iso_mean']:.3f}" in said[0]
     flat = datasets.cylinder_patch(h=0.1)
     assert not [w for w in parameterize(flat.V, flat.F).report["warnings"] if "stretches" in w]
+
+
+def test_seams_trial_decided_where_the_cut_maps_coarse_level_hands_over(monkeypatch):
+    """The map without seams of the noisy part above, with the noise bound switched off so that the cut is tried
+    (3k coarse vertices: the cut mesh's boundary alone is more than half of 1.5k): the cut map pauses where its
+    coarse level hands over, which does not lower the coarse iso mean (``seams.coarse_bound``), so its fine level
+    is never polished; with the rule switched off too, the cut map was polished and lost, and the kept map is the
+    same bit for bit."""
+    from heatparam import options
+    from heatparam.pipeline import seams
+    from heatparam.refine import multilevel
+
+    V, F = _noisy_cylinder_with_holes(0.2, 12_000)
+    monkeypatch.setattr(multilevel, "COARSE_MIN", 3000)
+    monkeypatch.setattr(seams, "noise_bound", lambda flat: None)
+    r = parameterize(V, F, refine_multilevel=10_000)
+    s = r.report["method"]["seams"]
+    coarse = s["coarse_iso_means"]
+    assert not s["used"] and "not polished on" in s["reason"]
+    assert coarse["without"] - coarse["with"] < options.SEAM_MIN_GAIN * r.report["metrics"]["iso_mean"]
+    monkeypatch.setattr(seams, "coarse_bound", lambda flat, cut: None)
+    old = parameterize(V, F, refine_multilevel=10_000)
+    so = old.report["method"]["seams"]
+    assert not so["used"] and "coarse_iso_means" not in so
+    assert so["iso_mean_with"] > so["iso_mean_without"] * (1 - options.SEAM_MIN_GAIN)
+    assert np.array_equal(r.uv, old.uv) and r.report["metrics"] == old.report["metrics"]
+
+
+def test_coarse_bound_needs_both_coarse_levels_and_a_cut_level_that_stopped():
+    """The rule reads both maps' coarse levels: the cut map's must have stopped where its energy no longer fell
+    (converged or stalled at the barrier) and the map without seams be bijective; otherwise no verdict."""
+    from heatparam.pipeline import seams
+    from heatparam.pipeline.report import Flat
+
+    def flat(coarse, iso=1.056, bijective=True):
+        ml = {"used": True, "coarse_iso_mean": coarse}
+        return Flat(None, {"iso_mean": iso, "bijective": bijective}, {"refine": {"multilevel": ml}}, None, None, [])
+
+    def cut(coarse, stop="converged", converged=True, iterations=0):
+        ml = {"used": True, "coarse_iso_mean": coarse, "coarse_polish": {"converged": converged, "stop": stop}}
+        return Flat(None, {"iso_mean": 1.3, "bijective": True},
+                    {"refine": {"multilevel": ml, "polish": {"iterations": iterations}}}, None, None, [], lambda: None)
+
+    assert seams.coarse_bound(flat(1.03), cut(1.02)) is not None  # gains 0.01 < 2% of 1.056
+    assert seams.coarse_bound(flat(1.03), cut(1.035, "stalled at the barrier", False)) is not None
+    assert seams.coarse_bound(flat(1.05), cut(1.02)) is None  # 0.03 ≥ 0.0211
+    for c in (cut(1.02, "iteration cap", False), cut(1.02, iterations=3)):
+        assert seams.coarse_bound(flat(1.03), c) is None
+    assert seams.coarse_bound(flat(1.03, bijective=False), cut(1.02)) is None

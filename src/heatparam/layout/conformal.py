@@ -44,7 +44,7 @@ def _conformal_energy(V: np.ndarray, F: np.ndarray) -> tuple[sp.csc_matrix, np.n
 
     n = len(V)
     K = (-igl.cotmatrix(V, F)).tocsc()
-    if not np.isfinite(K.data).all():
+    if not np.isfinite(K.data).all() and np.isfinite(V).all():
         # zero-area faces (scan slivers) have no cotangents: those of the intrinsically mollified triangles, as the
         # heat stage and the polish take them (a 2-4 face defect of a 250k scan left the conformal start out)
         K = cotan_laplacian(mollified_lengths(V, F), F)

@@ -242,11 +242,12 @@ class _Refined:
         return Flat(self.rf.x, summary, method, h.layout, h.fill_surface, h.warnings,
                     None if self.rf.done else self.resume)
 
-    def resume(self) -> Flat:
+    def resume(self, pause_excess: float = 0.0) -> Flat:
+        """The refinement finished (or, with ``pause_excess`` > 0, gone on to its next pause: ``refine.Pausing``)."""
         f = self.flattening
         with f.prog.in_pass(", ".join(x for x in (f.label, "resumed") if x)):
             with f.prog.stage("refine"):
-                self.rf.run()
+                self.rf.run(pause_excess)
             return self.flat()
 
 

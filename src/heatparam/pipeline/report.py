@@ -22,7 +22,8 @@ class Flat(NamedTuple):
     """One flattening of a surface: the map (n,2), its metrics, the report's ``method`` part, the MDS layout it
     came from (None when the heat stage was skipped), the fill surface (for pictures) and warnings. ``resume``:
     None for a finished flattening; for one whose polish paused (``pipeline.flatten(pause_excess=...)``: the map
-    is bijective, its metrics those of the paused layout) a call that finishes it and returns the finished Flat."""
+    is bijective, its metrics those of the paused layout) a call that finishes it and returns the finished Flat
+    (``resume(pause_excess)``: goes on to its next pause instead)."""
 
     uv: np.ndarray
     summary: dict
@@ -30,7 +31,7 @@ class Flat(NamedTuple):
     layout: Layout | None
     fill_surface: FillSurface | None
     warnings: list[str]
-    resume: Callable[[], Flat] | None = None
+    resume: Callable[..., Flat] | None = None
 
 
 def map_metrics(V: np.ndarray, F: np.ndarray, uv: np.ndarray, prog: Progress, layout: Layout | None) -> dict:

@@ -25,6 +25,7 @@ from heatparam.pipeline.report import Flat
 from heatparam.pipeline.surface import Surface
 from heatparam.progress import Progress
 from heatparam.refine import Pausing
+from heatparam.refine.newton import Stop
 from heatparam.refine.reopen_slits import reopen_crossing_slits
 
 
@@ -97,8 +98,10 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat, flatten: Cal
         if x is not None:
             starts["projection_reopened"] = x
     # the cut map, when paused, keeps its factorization: it is usually kept and finished next (4.5 s to rebuild
-    # at 311k vertices); when the map without seams is kept instead, the cut map is dropped first
-    pausing = Pausing(seam_pause(surface, opts).excess, park=False)
+    # at 311k vertices); when the map without seams is kept instead, the cut map is dropped first. A trial pauses
+    # first where its coarse level hands over (:func:`coarse_bound`)
+    excess = seam_pause(surface, opts).excess
+    pausing = Pausing(excess, park=False, fine_start=excess > 0)
     maps = _Maps(flat, flatten(cut.surface, opts, prog, seamed=True, starts=starts or None, pausing=pausing))
     del flat  # from here on only ``maps`` holds the two maps, so that the one not kept can be freed
     return _chosen(opts, maps, cut, rep, float(surface.frame.lengths_to_model(sum(lengths))))
@@ -131,8 +134,17 @@ def _cut_open(surface: Surface) -> tuple[Cut | None, str | None]:
 def _chosen(opts, maps: _Maps, cut: Cut, rep: dict, length: float) -> SeamResult:
     """The seams stage's value once both maps exist: the one kept finished, the other left where it is (``length``:
     the seams' in model units, for the warning)."""
+    coarse_reason = None
     if opts.seams == "auto":
-        better, maps.without, maps.cut = _decide(maps.without, maps.cut)
+        coarse_reason = coarse_bound(maps.without, maps.cut)
+        if coarse_reason is not None:
+            better = False
+            rep["coarse_iso_means"] = {k: f.method["refine"]["multilevel"]["coarse_iso_mean"]
+                                       for k, f in (("without", maps.without), ("with", maps.cut))}
+        else:
+            if _at_fine_start(maps.cut):  # on to where a trial's fine polish pauses
+                maps.cut = maps.cut.resume(SEAM_PAUSE_EXCESS)
+            better, maps.without, maps.cut = _decide(maps.without, maps.cut)
     else:
         better = True
     paused = [name for name, f, kept in (("without", maps.without, not better), ("with", maps.cut, better))
@@ -153,8 +165,9 @@ def _chosen(opts, maps: _Maps, cut: Cut, rep: dict, length: float) -> SeamResult
                                   "so they were not finished")}
     was_paused = " (paused)" if paused else ""
     if not better:
-        rep["reason"] = (f"the cut-open map is not {SEAM_MIN_GAIN:.0%} better (iso mean {iso_s:.4f}{was_paused} vs "
-                         f"{iso:.4f}{'' if cut_flat.summary['bijective'] else ', not bijective'}); kept without seams")
+        rep["reason"] = coarse_reason or (
+            f"the cut-open map is not {SEAM_MIN_GAIN:.0%} better (iso mean {iso_s:.4f}{was_paused} vs "
+            f"{iso:.4f}{'' if cut_flat.summary['bijective'] else ', not bijective'}); kept without seams")
         return SeamResult(flat, None, rep, [], flat)
     rep["used"] = True
     rep["reason"] = (f"the holes cost distortion: iso mean {iso:.4f}{was_paused} without seams, {iso_s:.4f} with "
@@ -231,6 +244,42 @@ def _decide(flat: Flat, cut: Flat) -> tuple[bool, Flat, Flat]:
     better = cut.summary["bijective"] and (not flat.summary["bijective"]
                                            or cut.summary["iso_mean"] <= flat.summary["iso_mean"] * (1 - SEAM_MIN_GAIN))
     return better, flat, cut
+
+
+def _at_fine_start(f: Flat) -> bool:
+    """Whether the flattening ``f`` paused before its fine polish's first iteration (``Pausing.fine_start``)."""
+    refine = f.method.get("refine", {})
+    return (f.resume is not None and refine.get("multilevel", {}).get("used", False)
+            and refine["polish"]["iterations"] == 0)
+
+
+def coarse_bound(flat: Flat, cut: Flat) -> str | None:
+    """Why the cut map ``cut``, paused where its coarse level handed over (``Pausing.fine_start``), cannot be kept:
+    its coarse level is not ``SEAM_MIN_GAIN`` × the fine iso mean of the map without seams ``flat`` better than
+    that map's coarse level (None: the rule does not rule the cut out, or cannot be applied).
+
+    :func:`noise_bound`'s argument with the cut's own coarse level in place of the best case (an isometry): what a
+    cut removes is the smooth stretch the holes force, which a coarse level resolves as well as the fine one, so
+    the fine iso mean drops by about what the coarse one drops (measured: halftunnel↑50k 0.491 coarse, 0.483
+    fine), while scan noise, in the fine mesh only, stays in both maps. Needs both coarse levels, the cut's
+    stopped where its energy no longer fell (converged, or stalled at the barrier: gains below the tolerance; not
+    at an iteration cap or a failure), and the map without seams bijective; the latter's coarse iso mean, when its
+    level paused, is an upper bound and only makes the rule more cautious."""
+    if not (_at_fine_start(cut) and flat.summary["bijective"]):
+        return None
+    mu, mc = flat.method["refine"].get("multilevel", {}), cut.method["refine"]["multilevel"]
+    stop = mc["coarse_polish"]
+    if not (mu.get("used") and mu.get("coarse_iso_mean") is not None
+            and (stop["converged"] or stop["stop"] == Stop.STALLED.value)):
+        return None
+    gain, lo = mu["coarse_iso_mean"] - mc["coarse_iso_mean"], _range(flat)[0]
+    if gain >= SEAM_MIN_GAIN * lo:
+        return None
+    change = f"lowers the coarse level's iso mean by {gain:.4f} only" if gain > 0 else \
+        "does not lower the coarse level's iso mean"
+    return (f"the cut {change} ({mu['coarse_iso_mean']:.4f} → {mc['coarse_iso_mean']:.4f}), less than "
+            f"{SEAM_MIN_GAIN:.0%} of the map without seams' {flat.summary['iso_mean']:.4f}: the rest of its distortion "
+            "is the fine mesh's (noise), which a cut keeps, so the cut map was not polished on; kept without seams")
 
 
 def _no_cut_reason(surface: Surface, opts, flat: Flat) -> str | None:

@@ -67,12 +67,14 @@ class Pausing(NamedTuple):
     excess : > 0: the polish pauses once an iteration lowers the energy by less than this fraction of its excess
     over an isometry (0: never). coarse : > 0: its coarse levels may pause too while their map's iso mean exceeds
     this (``multilevel.Levels``). park : a paused fine polish frees its factorization (False: it keeps it, for a
-    trial that is usually finished next).
+    trial that is usually finished next). fine_start : the polish also pauses before the fine level's first
+    iteration when a coarse level gave its start (the seams stage compares the two maps' coarse levels first).
     """
 
     excess: float = 0.0
     coarse: float = 0.0
     park: bool = True
+    fine_start: bool = False
 
 
 NO_PAUSE = Pausing()
@@ -136,7 +138,7 @@ class Refinement:
         with _one_openblas_thread():
             settings = LevelSettings(min_vertices=params.multilevel, max_iters=params.max_iters, tol=params.tol,
                                      backend=params.solver, pause_excess=pausing.excess, pause_coarse=pausing.coarse,
-                                     park=pausing.park)
+                                     park=pausing.park, pause_fine_start=pausing.fine_start)
             self.polish, self._report["multilevel"] = multilevel_polish(V, F, x, disk.loops, g, area, settings,
                                                                         progress=progress)
         self.seconds = time.perf_counter() - t0

@@ -65,6 +65,7 @@ class LevelSettings:
     this fraction of the energy's excess over an isometry (the seams stage decides on paused maps). pause_coarse :
     > 0 (with ``pause_excess``): the coarse levels may pause too while their map's iso mean exceeds it. park :
     ``PolishSettings.park`` of the fine polish. coarse : this mesh is a coarse level of another (its own stop rules).
+    pause_fine_start : pause before the fine polish's first iteration when a coarse level gave its start.
     """
 
     min_vertices: int
@@ -75,11 +76,12 @@ class LevelSettings:
     pause_coarse: float = 0.0
     park: bool = True
     coarse: bool = False
+    pause_fine_start: bool = False
 
     def for_coarse_level(self) -> LevelSettings:
         """The settings of this mesh's coarse level."""
         return replace(self, min_vertices=min(self.min_vertices, LEVEL_MULTILEVEL_MIN), park=True, coarse=True,
-                       pause_excess=self.pause_excess if self.pause_coarse > 0 else 0.0)
+                       pause_excess=self.pause_excess if self.pause_coarse > 0 else 0.0, pause_fine_start=False)
 
 
 def coarse_vertices(V: np.ndarray, F: np.ndarray, loops: list[np.ndarray], target: int) -> np.ndarray:
@@ -432,7 +434,8 @@ def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[n
                       label: str = "Newton") -> tuple[Polish | Levels, dict]:
     """Polish (V (n,3), F (m,3)) from the bijective layout ``x`` (n,2), coarse-to-fine when the mesh has at least
     ``settings.min_vertices`` vertices and ``x`` is more than ``MULTILEVEL_MIN_EXCESS`` above an isometry
-    (:class:`Multilevel`), until the polish stops or pauses (``settings.pause_excess``). g (m,3,2), area (m,): the
+    (:class:`Multilevel`), until the polish stops or pauses (``settings.pause_excess``; ``pause_fine_start``: before
+    the fine level's first iteration, when a coarse level gave its start). g (m,3,2), area (m,): the
     rest triangles' hat gradients and areas; loops: boundary loops, outer first; guards (k,3): triangles kept
     positive. Returns (the fine level's :class:`newton.Polish`, or :class:`Levels` when its coarse level paused,
     with its layout ``x`` and ``report()``; the coarse-to-fine report, updated in place when a paused coarse level
@@ -441,7 +444,8 @@ def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[n
     run: Polish | Levels = ml.fine_polish(ml.coarse_start())
     if ml.coarse is not None and ml.coarse.paused:
         run = Levels(run, ml)
-    run_polish(run, progress, label, settings.pause_excess)
+    if not (settings.pause_fine_start and ml.report.get("used")):
+        run_polish(run, progress, label, settings.pause_excess)
     return run, ml.report
 
 
