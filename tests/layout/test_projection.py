@@ -76,23 +76,3 @@ def test_split_vertex_copies_are_pushed_apart_so_the_scaffold_can_be_built():
     assert rep["layout"] == "projection" and rep["projection"]["separated"] == 2
     assert len(np.unique(x[bnd], axis=0)) == len(bnd) and start.bijectivity(x, F, g) == (0, 0)
     build_scaffold(x, disk.loops)  # raises when boundary points touch
-
-
-def test_a_flipped_ear_is_put_back_at_its_rest_shape():
-    """An ear's tip (a corner no other face uses) folded over its edge cannot be repaired by moving interior
-    vertices: ``repaired_layout`` puts it where its face has its rest shape, which on a flat part is where it was."""
-    s = datasets.flat_square()
-    V, F = s.V, s.F
-    uv = V[:, :2].copy()
-    g, area = energy.surface_gradients(V, F)
-    assert (energy.det(energy.jacobians(uv, F, g)) > 0).all()
-    uses = np.bincount(F.ravel())
-    f, k = (int(i) for i in np.argwhere(uses[F] == 1)[0])
-    a, b, tip = F[f, (k + 1) % 3], F[f, (k + 2) % 3], F[f, k]
-    d = (uv[b] - uv[a]) / np.linalg.norm(uv[b] - uv[a])
-    folded = uv.copy()
-    r = uv[tip] - uv[a]
-    folded[tip] = uv[a] + 2 * (r @ d) * d - r  # mirrored across the edge a-b
-    z, rep = start.repaired_layout(folded, F, g, build_disk(V, F).loops)
-    assert rep["flips"] == 1 and rep["repaired"]
-    assert np.allclose(z, uv)

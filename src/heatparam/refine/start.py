@@ -42,13 +42,11 @@ def repaired_layout(x: np.ndarray, F: np.ndarray, g: np.ndarray, loops: list[np.
                     ) -> tuple[np.ndarray | None, dict]:
     """``x`` (n,2) made bijective by :func:`repair_flips` if only a few of its faces are flipped
     (≤ ``MDS_REPAIR_MAX_FRACTION``), with the boundary loops locked; (layout or None, report)."""
-    flipped = det(jacobians(x, F, g)) <= 0
-    flips = int(flipped.sum())
+    flips = int((det(jacobians(x, F, g)) <= 0).sum())
     if flips == 0:
         return None, {"flips": 0, "repaired": False, "reason": "nothing flipped"}
     if flips > max(1, MDS_REPAIR_MAX_FRACTION * len(F)):
         return None, {"flips": flips, "repaired": False, "reason": "too many flips to repair"}
-    x = ears_at_rest(x, F, g, flipped)
     locked = np.zeros(len(x), dtype=bool)
     locked[np.concatenate(loops)] = True
     z, _, rounds = repair_flips(x, x, F, g, locked)
@@ -60,45 +58,6 @@ def repaired_layout(x: np.ndarray, F: np.ndarray, g: np.ndarray, loops: list[np.
         return None, {"flips": flips, "repaired": False,
                       "reason": "a hole is turned inside out (the layout covers it twice)"}
     return z, {"flips": flips, "repaired": True, "rounds": rounds}
-
-def ears_at_rest(x: np.ndarray, F: np.ndarray, g: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """``x`` (n,2) with the tip of every ear among ``faces`` (m,) bool (a corner that no other face uses: a boundary
-    spike, or a scan's zero-area sliver on a boundary edge) moved to where its face has its rest shape, similar and
-    counter-clockwise, on its other two corners: the tip's best place, and only that face moves (the boundary
-    repair, which never moves boundary vertices, could not unflip it). A new array."""
-    uses = np.bincount(F.ravel(), minlength=len(x))
-    tips = faces[:, None] & (uses[F] == 1)
-    f, k = np.nonzero(tips)
-    if len(f) == 0:
-        return x
-    x = x.copy()
-    i, j = (k + 1) % 3, (k + 2) % 3
-    # the rest triangle's corners from its hat gradients: grad φ_k ⟂ the opposite edge, |grad φ_k| = 1 / height
-    rest = _rest_corners(g[f])
-    a, b = x[F[f, i]], x[F[f, j]]
-    ra, rb, rk = (rest[np.arange(len(f)), c] for c in (i, j, k))
-    # the similarity (a complex factor) taking rest edge i → j onto the layout's
-    s = _cplx(b - a) / _cplx(rb - ra)
-    x[F[f, k]] = _real(_cplx(a) + s * _cplx(rk - ra))
-    return x
-
-
-def _rest_corners(g: np.ndarray) -> np.ndarray:
-    """Corners (k,3,2) of rest triangles, up to a rigid motion, from their hat gradients g (k,3,2): corner 0 at
-    the origin, the others where the gradients' inverse puts them (∇φ_1, ∇φ_2 are the rows of E⁻ᵀ's columns)."""
-    E = np.linalg.inv(g[:, 1:, :])  # (k,2,2): columns are the edges p1 − p0, p2 − p0
-    out = np.zeros((len(g), 3, 2))
-    out[:, 1], out[:, 2] = E[:, :, 0], E[:, :, 1]
-    return out
-
-
-def _cplx(p: np.ndarray) -> np.ndarray:
-    return p[:, 0] + 1j * p[:, 1]
-
-
-def _real(z: np.ndarray) -> np.ndarray:
-    return np.column_stack([z.real, z.imag])
-
 
 class LscmStart(NamedTuple):
     """The conformal layout as a start candidate: the layout (None if it failed; repaired when ``repair`` says so),
