@@ -526,11 +526,11 @@ def test_a_stretched_one_piece_map_says_how_to_get_pieces():
 
 
 def test_seams_trial_decided_where_the_cut_maps_coarse_level_hands_over(monkeypatch):
-    """The map without seams of the noisy part above, with the noise bound switched off so that the cut is tried
-    (3k coarse vertices: the cut mesh's boundary alone is more than half of 1.5k): the cut map pauses where its
-    coarse level hands over, which does not lower the coarse iso mean (``seams.coarse_bound``), so its fine level
-    is never polished; with the rule switched off too, the cut map was polished and lost, and the kept map is the
-    same bit for bit."""
+    """The noisy part of ``test_seams_not_tried_where_the_coarse_level_is_near_an_isometry``, with the noise bound
+    switched off so that the cut is tried (3k coarse vertices: the cut mesh's boundary alone is more than half
+    of 1.5k): the cut map pauses where its coarse level hands over, which does not lower the coarse iso mean
+    (``seams.coarse_bound``), so its fine level is never polished; with the rule switched off too, the cut map
+    was polished and lost, and the kept map is the same bit for bit."""
     from heatparam import options
     from heatparam.pipeline import seams
     from heatparam.refine import multilevel
