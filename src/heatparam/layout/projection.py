@@ -16,6 +16,9 @@ import numpy as np
 from heatparam.mesh.planar import signed_areas
 from heatparam.mesh.topology import face_areas
 
+#: Why :func:`projection_layout` gave no layout, as the reports say it
+NO_MEAN_PLANE = "the faces' normals sum to zero: no mean plane"
+
 
 def projection_layout(V: np.ndarray, F: np.ndarray) -> np.ndarray | None:
     """V (n,3), F (m,3) projected orthogonally onto the plane through the centroid normal to Σ_f A_f n_f (the faces'

@@ -17,7 +17,7 @@ import numpy as np
 
 from heatparam.errors import HeatparamError
 from heatparam.layout.conformal import SCP_CUT_MAX_ITERS
-from heatparam.layout.projection import projection_layout
+from heatparam.layout.projection import NO_MEAN_PLANE, projection_layout
 from heatparam.mesh.seams import cut_open, hole_seams
 from heatparam.mesh.validate import validate_mesh
 from heatparam.options import SEAM_MIN_GAIN, SEAM_PAUSE_EXCESS, SEAM_PAUSE_FLOOR, SEAM_TRY_EXCESS
@@ -199,7 +199,7 @@ def _reopened_projection(cut_surface: Surface, source: np.ndarray) -> tuple[np.n
     """
     uv = projection_layout(cut_surface.V, cut_surface.F)
     if uv is None:
-        return None, {"reason": "the faces' normals sum to zero: no mean plane"}
+        return None, {"reason": NO_MEAN_PLANE}
     return reopen_crossing_slits(uv, cut_surface.F, source)
 
 

@@ -15,7 +15,7 @@ import numpy as np
 from heatparam import metrics
 from heatparam.errors import HeatparamError
 from heatparam.layout.conformal import conformal_layout
-from heatparam.layout.projection import projection_layout
+from heatparam.layout.projection import NO_MEAN_PLANE, projection_layout
 from heatparam.layout.tutte import Disk, tutte
 from heatparam.mesh.topology import boundary_edges, boundary_loops
 from heatparam.options import ISOMETRIC_START_EXCESS
@@ -165,12 +165,12 @@ def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk
 def _projection(V: np.ndarray, F: np.ndarray, g: np.ndarray, disk: Disk) -> tuple[np.ndarray | None, dict]:
     """The projection onto the mean plane (``layout.projection``) as a start candidate: (the layout when it is
     bijective, a few flipped faces repaired as MDS's are, else None; the report's ``start.projection``). Boundary
-    vertices the projection puts on one point (the copies of a vertex that the atlas's repair split, at one 3D
-    position) are pushed into their own sides first (``reopen_slits.push_apart``): the scaffold needs distinct
-    boundary points."""
+    vertices that a bijective projection puts on one point (the copies of a vertex that the atlas's repair split,
+    at one 3D position) are then pushed into their own sides (``reopen_slits.push_apart``): the scaffold needs
+    distinct boundary points."""
     x = projection_layout(V, F)
     if x is None:
-        return None, {"reason": "the faces' normals sum to zero: no mean plane"}
+        return None, {"reason": NO_MEAN_PLANE}
     flips, cross = bijectivity(x, F, g)
     report: dict = {"flips": flips, "crossings": cross}
     if flips:
