@@ -876,13 +876,29 @@ def test_repaired_layout_unfolds_a_few_flips_and_keeps_the_boundary():
     bad = _with_a_fold(s.uv_true, s.F, np.concatenate(loops))
     flips = int((np.linalg.det(energy.jacobians(bad, s.F, g)) <= 0).sum())
     assert 0 < flips <= start.MDS_REPAIR_MAX_FRACTION * len(s.F) + 1
-    z, info = start.repaired_layout(bad, s.F, g, loops)
-    assert info["repaired"] and info["flips"] == flips
+    z, info = start.repaired_layout(bad, s.V, s.F, g, loops)
+    assert info["repaired"] and info["flips"] == flips and info["how"] == "mean value"
     assert (np.linalg.det(energy.jacobians(z, s.F, g)) > 0).all() and metrics.boundary_crossings(z, s.F) == 0
     bnd = np.concatenate(loops)
     assert np.array_equal(z[bnd], bad[bnd])  # the boundary is locked
-    z2, info2 = start.repaired_layout(s.uv_true, s.F, g, loops)
+    z2, info2 = start.repaired_layout(s.uv_true, s.V, s.F, g, loops)
     assert z2 is None and info2["reason"] == "nothing flipped"
+
+
+def test_repaired_layout_untangles_what_the_mean_value_repair_leaves(monkeypatch):
+    """Where mean value interpolation cannot unfold the flips (a non-convex neighbourhood; here it is made to fail)
+    the layout is untangled, its boundary held but at the flipped faces' own corners, and still judged."""
+    s = datasets.cylinder_patch()
+    disk = tutte.build_disk(s.V, s.F)
+    loops = [disk.outer, *disk.holes]
+    g, _ = energy.surface_gradients(s.V, s.F)
+    bad = _with_a_fold(s.uv_true, s.F, np.concatenate(loops))
+    monkeypatch.setattr(start, "repair_flips", lambda x, *a, **k: (None, 0, 1))
+    z, info = start.repaired_layout(bad, s.V, s.F, g, loops)
+    assert info["repaired"] and info["how"] == "untangled"
+    assert (np.linalg.det(energy.jacobians(z, s.F, g)) > 0).all() and metrics.boundary_crossings(z, s.F) == 0
+    bnd = np.concatenate(loops)
+    assert np.array_equal(z[bnd], bad[bnd])  # no flipped face touched the boundary: all of it held
 
 
 def test_repaired_layout_refuses_many_flips():
@@ -890,7 +906,7 @@ def test_repaired_layout_refuses_many_flips():
     disk = tutte.build_disk(s.V, s.F)
     g, _ = energy.surface_gradients(s.V, s.F)
     mirrored = s.uv_true * np.array([1.0, -1.0])  # every face flipped
-    z, info = start.repaired_layout(mirrored, s.F, g, [disk.outer, *disk.holes])
+    z, info = start.repaired_layout(mirrored, s.V, s.F, g, [disk.outer, *disk.holes])
     assert z is None and info["reason"] == "too many flips to repair"
 
 
