@@ -14,11 +14,13 @@ vertices for a decreasing sequence of ε; once no triangle is flipped a last min
 
 Each minimization is a projected Newton iteration (each face's 4×4 Hessian in J clamped to its positive
 eigenvalues, pulled back to its corners) on the faces at a free vertex only, with a backtracking line search: the
-paper's L-BFGS needed 150-230 iterations per ε on a 57k-unknown repair region (12.8 s at 150k vertices), Newton
-4-6 (2.5 s), to the same layout (tests).
+paper's L-BFGS needed 150-230 iterations per ε on a 57k-unknown repair region of a 150k-face scan, Newton 4-6, to the
+same layout (29 → 5 s; docs/refine.md §5.4).
 
-Used by :meth:`heatparam.refine.multilevel.CoarseLevel.repaired` where the mean value repair of a prolongation fails
-(flips beside a locked, non-convex boundary: mean value interpolation is flip-free only inside convex regions).
+Used where the mean value repair (``multilevel.repair_flips``) fails — of a prolongation
+(:meth:`heatparam.refine.multilevel.CoarseLevel.repaired`) or of a start candidate
+(``refine.start.repaired_layout``): beside a locked, non-convex boundary, since mean value interpolation is flip-free
+only inside convex regions.
 """
 
 from __future__ import annotations
