@@ -901,6 +901,21 @@ def test_repaired_layout_untangles_what_the_mean_value_repair_leaves(monkeypatch
     assert np.array_equal(z[bnd], bad[bnd])  # no flipped face touched the boundary: all of it held
 
 
+def test_the_conformal_start_keeps_its_unflipped_layout_when_it_is_not_bijective(monkeypatch):
+    """A conformal layout with a fold whose repair is not bijective (here: said to cross, as a cut mesh's slits do):
+    no energy, so not a candidate, but the flip-free layout is kept (the seams stage reopens crossing slits from it)."""
+    s = datasets.cylinder_patch()
+    disk = tutte.build_disk(s.V, s.F)
+    g, _ = energy.surface_gradients(s.V, s.F)
+    x = _with_a_fold(s.uv_true, s.F, disk.outer)
+    flips = int((np.linalg.det(energy.jacobians(x, s.F, g)) <= 0).sum())
+    monkeypatch.setattr(start, "_not_bijective", lambda z, F: "the boundary crosses itself")
+    st = start.lscm_start(s.V, s.F, conformal=lambda: x)
+    assert st.flips == flips > 0 and st.energy is None
+    assert st.repair["reason"] == "the boundary crosses itself" and not st.repair["repaired"]
+    assert (np.linalg.det(energy.jacobians(st.uv, s.F, g)) > 0).all()
+
+
 def test_repaired_layout_refuses_many_flips():
     s = datasets.cylinder_patch()
     disk = tutte.build_disk(s.V, s.F)

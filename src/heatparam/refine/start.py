@@ -38,13 +38,13 @@ def bijectivity(uv: np.ndarray, F: np.ndarray, g: np.ndarray) -> tuple[int, int]
 #: for the same map quality).
 MDS_REPAIR_MAX_FRACTION = 1e-3
 
-def repaired_layout(x: np.ndarray, V: np.ndarray, F: np.ndarray, g: np.ndarray, loops: list[np.ndarray]
-                    ) -> tuple[np.ndarray | None, dict]:
-    """``x`` (n,2) made bijective if only a few of its faces are flipped (≤ ``MDS_REPAIR_MAX_FRACTION``):
-    :func:`repair_flips` with the boundary loops locked, else (mean value interpolation unfolds only convex
-    neighbourhoods) :func:`untangle_flips` with the boundary locked but at the flipped faces' own corners; accepted
-    when the result is bijective. On a scan with noise 0.29 × its edge the conformal layout had 156 flipped faces
-    that only the untangling removed: start energy 1.65 instead of Tutte's. (layout or None, report)."""
+def unflipped_layout(x: np.ndarray, V: np.ndarray, F: np.ndarray, g: np.ndarray, loops: list[np.ndarray]
+                     ) -> tuple[np.ndarray | None, dict]:
+    """``x`` (n,2) without flipped faces if only a few are (≤ ``MDS_REPAIR_MAX_FRACTION``): :func:`repair_flips`
+    with the boundary loops locked, else (mean value interpolation unfolds only convex neighbourhoods)
+    :func:`untangle_flips` with the boundary locked but at the flipped faces' own corners. Crossings are not
+    judged here (:func:`repaired_layout` does). On a scan with noise 0.29 × its edge the conformal layout had 156
+    flipped faces that only the untangling removed: start energy 1.65 instead of Tutte's. (layout or None, report)."""
     bad = det(jacobians(x, F, g)) <= 0
     flips = int(bad.sum())
     if flips == 0:
@@ -60,17 +60,33 @@ def repaired_layout(x: np.ndarray, V: np.ndarray, F: np.ndarray, g: np.ndarray, 
         z, rounds = untangle_flips(x, V, F, g, locked)
         how = "untangled"
     if z is None:
-        return None, {"flips": flips, "repaired": False, "reason": "flips remain after the mean value repair and "
-                      "the untangling"}
-    if metrics.boundary_crossings(z, F):
-        return None, {"flips": flips, "repaired": False, "reason": "the boundary crosses itself"}
-    if metrics.inverted_loops(z, F):
         return None, {"flips": flips, "repaired": False,
-                      "reason": "a hole is turned inside out (the layout covers it twice)"}
+                      "reason": "flips remain after the mean value repair and the untangling"}
     return z, {"flips": flips, "repaired": True, "how": how, "rounds": rounds}
 
+
+def repaired_layout(x: np.ndarray, V: np.ndarray, F: np.ndarray, g: np.ndarray, loops: list[np.ndarray]
+                    ) -> tuple[np.ndarray | None, dict]:
+    """``x`` (n,2) made bijective if only a few of its faces are flipped: :func:`unflipped_layout`, accepted when
+    no boundary crosses another and no hole is turned inside out; (layout or None, report)."""
+    z, report = unflipped_layout(x, V, F, g, loops)
+    if z is None:
+        return None, report
+    why = _not_bijective(z, F)
+    return (z, report) if why is None else (None, report | {"repaired": False, "reason": why})
+
+
+def _not_bijective(z: np.ndarray, F: np.ndarray) -> str | None:
+    """Why the flip-free layout ``z`` is not bijective (None: it is)."""
+    if metrics.boundary_crossings(z, F):
+        return "the boundary crosses itself"
+    if metrics.inverted_loops(z, F):
+        return "a hole is turned inside out (the layout covers it twice)"
+    return None
+
 class LscmStart(NamedTuple):
-    """The conformal layout as a start candidate: the layout (None if it failed; repaired when ``repair`` says so),
+    """The conformal layout as a start candidate: the layout (None if it failed; unflipped when ``repair`` says so,
+    then bijective unless its ``reason`` says why not: a cut mesh's crossing slits are reopened from it),
     flips and crossings of the layout as computed (crossings -1 when not counted), its energy per area / 4 (1 =
     isometry; None unless it, or its repair, is bijective), why it failed, and the repair's report (None: nothing was
     flipped)."""
@@ -104,9 +120,12 @@ def lscm_start(V: np.ndarray, F: np.ndarray, conformal: Callable[[], np.ndarray]
     flips, cross = bijectivity(xl, F, g)
     repair = None
     if flips:
-        z, repair = repaired_layout(xl, V, F, g, boundary_loops(F))
+        z, repair = unflipped_layout(xl, V, F, g, boundary_loops(F))
         if z is not None:
-            return LscmStart(z, flips, cross, normalized_energy(z, F, g, area), None, repair)
+            why = _not_bijective(z, F)
+            if why is None:
+                return LscmStart(z, flips, cross, normalized_energy(z, F, g, area), None, repair)
+            return LscmStart(z, flips, cross, None, None, repair | {"repaired": False, "reason": why})
     e = normalized_energy(xl, F, g, area) if flips == 0 and cross == 0 else None
     return LscmStart(xl, flips, cross, e, None, repair)
 
