@@ -20,7 +20,8 @@ from heatparam.refine.charts import refine_charts
 __all__ = ["PolishedChart", "polish_charts"]
 
 #: the polish's report keys kept in the atlas report
-REPORT_KEYS = ("charts", "iterations", "converged", "stop", "energy_start", "energy_end", "seconds", "used", "reason")
+REPORT_KEYS = ("charts", "iterations", "converged", "stop", "energy_start", "energy_end", "seconds", "used", "reason",
+               "scaffolded")
 
 
 @dataclass
@@ -62,6 +63,10 @@ def polish_charts(topo: Topology, groups: list[np.ndarray], seg: Segmentation, *
                                backend=params.solver)
     iso, flips = chart_iso(fl.Vl[rows], Fs, x, vg[Fs[:, 0]], len(good))
     crossing = rep.get("boundary_crossings", 0) > 0  # the scaffold rules it out; checked, not assumed
+    if params is not None and limit is not None and not crossing:
+        over = np.flatnonzero((iso > limit) & (flips == 0))
+        if len(over):
+            rep["scaffolded"] = _scaffolded(fl.Vl[rows], Fs, x, vg, over, iso, flips, params)
     polished = fl.uv.copy()
     polished[rows] = x
     done, rest = [], [i for i in range(len(groups)) if new[i] < 0]
@@ -74,6 +79,28 @@ def polish_charts(topo: Topology, groups: list[np.ndarray], seg: Segmentation, *
                 "method": "lscm + joint polish"}
         done.append(PolishedChart(groups[i], Fl, vert, uv, info))
     return done, sorted(rest), {k: rep[k] for k in REPORT_KEYS if k in rep}
+
+
+def _scaffolded(V: np.ndarray, F: np.ndarray, x: np.ndarray, vg: np.ndarray, over: np.ndarray, iso: np.ndarray,
+                flips: np.ndarray, params: RefineParams) -> dict:
+    """Polish the charts ``over`` (over the bound after the joint polish) again, together and inside a scaffold,
+    from where the joint polish left them; ``x`` (n,2), ``iso`` and ``flips`` (k,) updated in place where the
+    result is bijective. Without a scaffold a chart stops where its boundary would cross itself, often far above its
+    minimum: fandisk's larger chart left at iso mean 1.0576 (> 1.05) went through the whole pipeline (0.91 s), while
+    2 scaffolded iterations (0.08 s) bring it to 1.0093. Returns the pass's report."""
+    new = np.full(len(iso), -1, dtype=np.int64)
+    new[over] = np.arange(len(over))
+    fsel = new[vg[F[:, 0]]] >= 0
+    rows = np.unique(F[fsel])
+    loc = np.full(len(x), -1, dtype=np.int64)
+    loc[rows] = np.arange(len(rows))
+    Fo, vo = loc[F[fsel]], new[vg[rows]]
+    y, rep = refine_charts(V[rows], Fo, x[rows], vo, len(over), max_iters=params.max_iters, tol=params.tol,
+                           backend=params.solver, scaffold=True)
+    if rep["flips"] == 0 and rep["boundary_crossings"] == 0:
+        x[rows] = y
+        iso[over], flips[over] = chart_iso(V[rows], Fo, y, vo[Fo[:, 0]], len(over))
+    return {k: rep[k] for k in ("charts", "iterations", "stop", "seconds") if k in rep}
 
 
 def _starts(topo: Topology, groups: list[np.ndarray], seg: Segmentation) -> tuple[Flattenings, np.ndarray]:
