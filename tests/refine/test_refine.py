@@ -876,44 +876,13 @@ def test_repaired_layout_unfolds_a_few_flips_and_keeps_the_boundary():
     bad = _with_a_fold(s.uv_true, s.F, np.concatenate(loops))
     flips = int((np.linalg.det(energy.jacobians(bad, s.F, g)) <= 0).sum())
     assert 0 < flips <= start.MDS_REPAIR_MAX_FRACTION * len(s.F) + 1
-    z, info = start.repaired_layout(bad, s.V, s.F, g, loops)
-    assert info["repaired"] and info["flips"] == flips and info["how"] == "mean value"
+    z, info = start.repaired_layout(bad, s.F, g, loops)
+    assert info["repaired"] and info["flips"] == flips
     assert (np.linalg.det(energy.jacobians(z, s.F, g)) > 0).all() and metrics.boundary_crossings(z, s.F) == 0
     bnd = np.concatenate(loops)
     assert np.array_equal(z[bnd], bad[bnd])  # the boundary is locked
-    z2, info2 = start.repaired_layout(s.uv_true, s.V, s.F, g, loops)
+    z2, info2 = start.repaired_layout(s.uv_true, s.F, g, loops)
     assert z2 is None and info2["reason"] == "nothing flipped"
-
-
-def test_repaired_layout_untangles_what_the_mean_value_repair_leaves(monkeypatch):
-    """Where mean value interpolation cannot unfold the flips (a non-convex neighbourhood; here it is made to fail)
-    the layout is untangled, its boundary held but at the flipped faces' own corners, and still judged."""
-    s = datasets.cylinder_patch()
-    disk = tutte.build_disk(s.V, s.F)
-    loops = [disk.outer, *disk.holes]
-    g, _ = energy.surface_gradients(s.V, s.F)
-    bad = _with_a_fold(s.uv_true, s.F, np.concatenate(loops))
-    monkeypatch.setattr(start, "repair_flips", lambda x, *a, **k: (None, 0, 1))
-    z, info = start.repaired_layout(bad, s.V, s.F, g, loops)
-    assert info["repaired"] and info["how"] == "untangled"
-    assert (np.linalg.det(energy.jacobians(z, s.F, g)) > 0).all() and metrics.boundary_crossings(z, s.F) == 0
-    bnd = np.concatenate(loops)
-    assert np.array_equal(z[bnd], bad[bnd])  # no flipped face touched the boundary: all of it held
-
-
-def test_the_conformal_start_keeps_its_unflipped_layout_when_it_is_not_bijective(monkeypatch):
-    """A conformal layout with a fold whose repair is not bijective (here: said to cross, as a cut mesh's slits do):
-    no energy, so not a candidate, but the flip-free layout is kept (the seams stage reopens crossing slits from it)."""
-    s = datasets.cylinder_patch()
-    disk = tutte.build_disk(s.V, s.F)
-    g, _ = energy.surface_gradients(s.V, s.F)
-    x = _with_a_fold(s.uv_true, s.F, disk.outer)
-    flips = int((np.linalg.det(energy.jacobians(x, s.F, g)) <= 0).sum())
-    monkeypatch.setattr(start, "_not_bijective", lambda z, F: "the boundary crosses itself")
-    st = start.lscm_start(s.V, s.F, conformal=lambda: x)
-    assert st.flips == flips > 0 and st.energy is None
-    assert st.repair["reason"] == "the boundary crosses itself" and not st.repair["repaired"]
-    assert (np.linalg.det(energy.jacobians(st.uv, s.F, g)) > 0).all()
 
 
 def test_repaired_layout_refuses_many_flips():
@@ -921,7 +890,7 @@ def test_repaired_layout_refuses_many_flips():
     disk = tutte.build_disk(s.V, s.F)
     g, _ = energy.surface_gradients(s.V, s.F)
     mirrored = s.uv_true * np.array([1.0, -1.0])  # every face flipped
-    z, info = start.repaired_layout(mirrored, s.V, s.F, g, [disk.outer, *disk.holes])
+    z, info = start.repaired_layout(mirrored, s.F, g, [disk.outer, *disk.holes])
     assert z is None and info["reason"] == "too many flips to repair"
 
 

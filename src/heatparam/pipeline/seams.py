@@ -180,14 +180,16 @@ def _chosen(opts, maps: _Maps, cut: Cut, rep: dict, length: float) -> SeamResult
 
 
 def _reopened_conformal(cut_surface: Surface, source: np.ndarray) -> tuple[np.ndarray | None, dict]:
-    """The cut surface's conformal layout, a few flipped faces removed (``Surface.conformal_start``), with its crossing
-    slits reopened (``refine.reopen_slits``), offered to the refinement as the start candidate
-    ``"conformal_reopened"`` when the layout crosses only there; (layout or None, the report's
-    ``seams.conformal_reopened``)."""
-    lscm = cut_surface.conformal_start()
-    if lscm.uv is None:  # the refinement's own start check reports it again; Tutte still serves
-        return None, {"reason": lscm.failed}
-    return reopen_crossing_slits(lscm.uv, cut_surface.F, source)
+    """The cut surface's conformal layout with its crossing slits reopened (``refine.reopen_slits``), offered to the
+    refinement as the start candidate ``"conformal_reopened"`` when the layout crosses only there; (layout or None,
+    the report's ``seams.conformal_reopened``)."""
+    try:
+        uv = cut_surface.conformal()
+    except HeatparamError as exc:  # the refinement's own start check reports it again; Tutte still serves
+        return None, {"reason": f"no conformal layout ({exc})"}
+    if not np.isfinite(uv).all():
+        return None, {"reason": "the conformal layout has non-finite coordinates"}
+    return reopen_crossing_slits(uv, cut_surface.F, source)
 
 
 def _reopened_projection(cut_surface: Surface, source: np.ndarray) -> tuple[np.ndarray | None, dict]:

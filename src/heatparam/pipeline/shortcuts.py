@@ -32,7 +32,7 @@ from typing import NamedTuple
 from heatparam.options import CONFORMAL_START_MIN_VERTICES, ISOMETRIC_START_EXCESS
 from heatparam.pipeline.surface import Surface
 from heatparam.progress import Progress
-from heatparam.refine.start import LscmStart
+from heatparam.refine.start import LscmStart, lscm_start
 
 
 class StartCheck(NamedTuple):
@@ -55,7 +55,7 @@ def start_checks(surface: Surface, opts, prog: Progress, seamed: bool = False, t
     if opts.refine == "none" or opts.mds_start == "always" or not heat_stage_optional(opts):
         return StartCheck(None, None)
     with prog.stage("start check"):
-        lscm = surface.conformal_start()
+        lscm = lscm_start(surface.V, surface.F, surface.conformal, surface.gradients())
     if opts.mds_start == "never":
         return StartCheck(lscm, "skipped: mds_start='never' (the refinement starts from the conformal layout, or Tutte "
                                 "when it is not bijective)")

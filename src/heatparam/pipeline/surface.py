@@ -54,14 +54,6 @@ class Surface:
         return uv0
 
     @functools.cache  # noqa: B019
-    def conformal_start(self):
-        """The conformal layout judged as the polish's start (``refine.start.lscm_start``: a few flips removed),
-        computed once: the start checks and the seams stage's reopened slits read the same."""
-        from heatparam.refine.start import lscm_start
-
-        return lscm_start(self.V, self.F, self.conformal, self.gradients())
-
-    @functools.cache  # noqa: B019
     def gradients(self) -> tuple[np.ndarray, np.ndarray]:
         """The refinement's per-face hat gradients (m,3,2) and areas (m,) (``refine.energy.surface_gradients``)."""
         from heatparam.refine.energy import surface_gradients

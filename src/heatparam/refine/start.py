@@ -20,7 +20,7 @@ from heatparam.layout.tutte import Disk, tutte
 from heatparam.mesh.topology import boundary_edges, boundary_loops
 from heatparam.options import ISOMETRIC_START_EXCESS
 from heatparam.refine.energy import det, jacobians, normalized_energy, surface_gradients
-from heatparam.refine.multilevel import repair_flips, untangle_flips
+from heatparam.refine.multilevel import repair_flips
 from heatparam.refine.reopen_slits import push_apart
 
 
@@ -33,20 +33,16 @@ def bijectivity(uv: np.ndarray, F: np.ndarray, g: np.ndarray) -> tuple[int, int]
         return flips, -1
     return 0, int(metrics.boundary_crossings(uv, F)) + metrics.inverted_loops(uv, F)
 
-#: A layout with a few flipped faces (at most this fraction, and at least 1) is repaired before it competes as a
-#: start (:func:`repaired_layout`; a noisy 49k-vertex patch's MDS: 3 flips repaired, then half the Newton iterations
-#: for the same map quality).
+#: An MDS layout with a few flipped faces (at most this fraction, and at least 1) is repaired before it competes as a
+#: start: ``repair_flips`` with the boundary locked, accepted only when the result is bijective (a noisy 49k-vertex
+#: patch: 3 flips repaired, then half the Newton iterations for the same map quality).
 MDS_REPAIR_MAX_FRACTION = 1e-3
 
-def unflipped_layout(x: np.ndarray, V: np.ndarray, F: np.ndarray, g: np.ndarray, loops: list[np.ndarray]
-                     ) -> tuple[np.ndarray | None, dict]:
-    """``x`` (n,2) without flipped faces if only a few are (≤ ``MDS_REPAIR_MAX_FRACTION``): :func:`repair_flips`
-    with the boundary loops locked, else (mean value interpolation unfolds only convex neighbourhoods)
-    :func:`untangle_flips` with the boundary locked but at the flipped faces' own corners. Crossings are not
-    judged here (:func:`repaired_layout` does). On a scan with noise 0.29 × its edge the conformal layout had 156
-    flipped faces that only the untangling removed: start energy 1.65 instead of Tutte's. (layout or None, report)."""
-    bad = det(jacobians(x, F, g)) <= 0
-    flips = int(bad.sum())
+def repaired_layout(x: np.ndarray, F: np.ndarray, g: np.ndarray, loops: list[np.ndarray]
+                    ) -> tuple[np.ndarray | None, dict]:
+    """``x`` (n,2) made bijective by :func:`repair_flips` if only a few of its faces are flipped
+    (≤ ``MDS_REPAIR_MAX_FRACTION``), with the boundary loops locked; (layout or None, report)."""
+    flips = int((det(jacobians(x, F, g)) <= 0).sum())
     if flips == 0:
         return None, {"flips": 0, "repaired": False, "reason": "nothing flipped"}
     if flips > max(1, MDS_REPAIR_MAX_FRACTION * len(F)):
@@ -54,39 +50,17 @@ def unflipped_layout(x: np.ndarray, V: np.ndarray, F: np.ndarray, g: np.ndarray,
     locked = np.zeros(len(x), dtype=bool)
     locked[np.concatenate(loops)] = True
     z, _, rounds = repair_flips(x, x, F, g, locked)
-    how = "mean value"
     if z is None:
-        locked[F[bad].ravel()] = False
-        z, rounds = untangle_flips(x, V, F, g, locked)
-        how = "untangled"
-    if z is None:
-        return None, {"flips": flips, "repaired": False,
-                      "reason": "flips remain after the mean value repair and the untangling"}
-    return z, {"flips": flips, "repaired": True, "how": how, "rounds": rounds}
-
-
-def repaired_layout(x: np.ndarray, V: np.ndarray, F: np.ndarray, g: np.ndarray, loops: list[np.ndarray]
-                    ) -> tuple[np.ndarray | None, dict]:
-    """``x`` (n,2) made bijective if only a few of its faces are flipped: :func:`unflipped_layout`, accepted when
-    no boundary crosses another and no hole is turned inside out; (layout or None, report)."""
-    z, report = unflipped_layout(x, V, F, g, loops)
-    if z is None:
-        return None, report
-    why = _not_bijective(z, F)
-    return (z, report) if why is None else (None, report | {"repaired": False, "reason": why})
-
-
-def _not_bijective(z: np.ndarray, F: np.ndarray) -> str | None:
-    """Why the flip-free layout ``z`` is not bijective (None: it is)."""
+        return None, {"flips": flips, "repaired": False, "reason": f"flips remain after {rounds} rounds"}
     if metrics.boundary_crossings(z, F):
-        return "the boundary crosses itself"
+        return None, {"flips": flips, "repaired": False, "reason": "the boundary crosses itself"}
     if metrics.inverted_loops(z, F):
-        return "a hole is turned inside out (the layout covers it twice)"
-    return None
+        return None, {"flips": flips, "repaired": False,
+                      "reason": "a hole is turned inside out (the layout covers it twice)"}
+    return z, {"flips": flips, "repaired": True, "rounds": rounds}
 
 class LscmStart(NamedTuple):
-    """The conformal layout as a start candidate: the layout (None if it failed; unflipped when ``repair`` says so,
-    then bijective unless its ``reason`` says why not: a cut mesh's crossing slits are reopened from it),
+    """The conformal layout as a start candidate: the layout (None if it failed; repaired when ``repair`` says so),
     flips and crossings of the layout as computed (crossings -1 when not counted), its energy per area / 4 (1 =
     isometry; None unless it, or its repair, is bijective), why it failed, and the repair's report (None: nothing was
     flipped)."""
@@ -120,12 +94,9 @@ def lscm_start(V: np.ndarray, F: np.ndarray, conformal: Callable[[], np.ndarray]
     flips, cross = bijectivity(xl, F, g)
     repair = None
     if flips:
-        z, repair = unflipped_layout(xl, V, F, g, boundary_loops(F))
+        z, repair = repaired_layout(xl, F, g, boundary_loops(F))
         if z is not None:
-            why = _not_bijective(z, F)
-            if why is None:
-                return LscmStart(z, flips, cross, normalized_energy(z, F, g, area), None, repair)
-            return LscmStart(z, flips, cross, None, None, repair | {"repaired": False, "reason": why})
+            return LscmStart(z, flips, cross, normalized_energy(z, F, g, area), None, repair)
     e = normalized_energy(xl, F, g, area) if flips == 0 and cross == 0 else None
     return LscmStart(xl, flips, cross, e, None, repair)
 
@@ -154,7 +125,7 @@ def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk
             report["mds_rejected"] = "non-finite coordinates"
             x = None
         elif flips:  # crossings are only counted when nothing is flipped; a repaired layout has none
-            x, report["repair"] = repaired_layout(x, V, F, g, disk.loops)
+            x, report["repair"] = repaired_layout(x, F, g, disk.loops)
             cross = 0
         if x is not None and not cross:
             cands["mds"], energies["mds"] = x, normalized_energy(x, F, g, area)
@@ -203,7 +174,7 @@ def _projection(V: np.ndarray, F: np.ndarray, g: np.ndarray, disk: Disk) -> tupl
     flips, cross = bijectivity(x, F, g)
     report: dict = {"flips": flips, "crossings": cross}
     if flips:
-        x, report["repair"] = repaired_layout(x, V, F, g, disk.loops)
+        x, report["repair"] = repaired_layout(x, F, g, disk.loops)
         if x is None:
             return None, report
         report["crossings"] = cross = 0
