@@ -17,10 +17,8 @@ eigenvalues, pulled back to its corners) on the faces at a free vertex only, wit
 paper's L-BFGS needed 150-230 iterations per ε on a 57k-unknown repair region of a 150k-face scan, Newton 4-6, to the
 same layout (29 → 5 s; docs/refine.md §5.4).
 
-Used where the mean value repair (``multilevel.repair_flips``) fails — of a prolongation
-(:meth:`heatparam.refine.multilevel.CoarseLevel.repaired`) or of a start candidate
-(``refine.start.repaired_layout``): beside a locked, non-convex boundary, since mean value interpolation is flip-free
-only inside convex regions.
+Used by :meth:`heatparam.refine.multilevel.CoarseLevel.repaired` where the mean value repair of a prolongation fails
+(flips beside a locked, non-convex boundary: mean value interpolation is flip-free only inside convex regions).
 """
 
 from __future__ import annotations
@@ -189,21 +187,22 @@ def _terms(J: np.ndarray, eps: float, derivatives: bool = False):
     vJ = J.reshape(m, 4)
     dD = np.stack([J[:, 1, 1], -J[:, 1, 0], -J[:, 0, 1], J[:, 0, 0]], axis=1)
     dN = 2.0 * (1.0 - lam) * vJ + 2.0 * lam * D[:, None] * dD
-    slope = 0.5 * (1.0 + D / s)  # dχ/dD
-    dchi = slope[:, None] * dD
+    chi_d = 0.5 * (1.0 + D / s)  # dχ/dD
+    dchi = chi_d[:, None] * dD
     c = chi[:, None]
     grad = dN / c - N[:, None] * dchi / c**2
-
-    def outer(a, b):
-        return a[:, :, None] * b[:, None, :]
-
-    d2N = 2.0 * (1.0 - lam) * np.eye(4) + 2.0 * lam * (outer(dD, dD) + D[:, None, None] * _DET_HESSIAN)
-    d2chi = (0.5 * eps * eps / s**3)[:, None, None] * outer(dD, dD) + slope[:, None, None] * _DET_HESSIAN
+    d2N = 2.0 * (1.0 - lam) * np.eye(4) + 2.0 * lam * (_outer(dD, dD) + D[:, None, None] * _DET_HESSIAN)
+    d2chi = (0.5 * eps * eps / s**3)[:, None, None] * _outer(dD, dD) + chi_d[:, None, None] * _DET_HESSIAN
     c = chi[:, None, None]
     Nc = N[:, None, None]
-    hess = (d2N / c - (outer(dN, dchi) + outer(dchi, dN)) / c**2 - Nc * d2chi / c**2
-            + 2.0 * Nc * outer(dchi, dchi) / c**3)
+    hess = (d2N / c - (_outer(dN, dchi) + _outer(dchi, dN)) / c**2 - Nc * d2chi / c**2
+            + 2.0 * Nc * _outer(dchi, dchi) / c**3)
     return psi, grad, hess
+
+
+def _outer(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise outer products (m,4,4) of a, b (m,4)."""
+    return a[:, :, None] * b[:, None, :]
 
 
 __all__ = ["untangle"]
