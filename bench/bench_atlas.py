@@ -147,14 +147,17 @@ def best_of(fn, args, repeat):
 
 
 def main(argv):
-    iters, repeat = 100, 1
-    while argv[:1] in (["--slim-iters"], ["--repeat"]):
-        if argv[0] == "--slim-iters":
-            iters = int(argv[1])
-        else:
-            repeat = int(argv[1])
-        argv = argv[2:]
-    names = argv or CLOSED + OPEN + GENERATED
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("names", nargs="*", help="meshes under ../shared/meshes, a path, or a generated shape (torus); "
+                    "default: the closed, open and generated set")
+    ap.add_argument("--slim-iters", type=int, default=100, help="libigl's SLIM iterations after cut_to_disk")
+    ap.add_argument("--repeat", type=int, default=1, help="runs per method; the least time is reported")
+    args = ap.parse_args(argv)
+    iters, repeat = args.slim_iters, args.repeat
+    names = args.names or CLOSED + OPEN + GENERATED
     print(f"machine: {machine()}\n")
     Vw, Fw = load("torus")  # warm-up (module docstring), untimed
     run_ours(Vw, Fw, "torus"), run_xatlas(Vw, Fw), run_uvunwrap(Vw, Fw), run_igl(Vw, Fw, iters)
