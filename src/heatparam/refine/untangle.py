@@ -114,8 +114,8 @@ class _Region:
         self.indptr = np.searchsorted(key // (2 * k), np.arange(2 * k + 1)).astype(np.int32)
         self.fac: Factor | None = None
 
-    def dets(self, y: np.ndarray | None = None) -> np.ndarray:
-        return det(jacobians(self.y if y is None else y, self.F, self.g))
+    def dets(self) -> np.ndarray:
+        return det(jacobians(self.y, self.F, self.g))
 
     def flipped(self) -> bool:
         return bool((self.dets() <= 0).any())
