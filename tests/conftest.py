@@ -59,3 +59,27 @@ def excess_cone(rings: int = 8, sectors: int = 64, wave: float = 0.35, k: int = 
             a, b, cc, d = idx(i, j), idx(i, j + 1), idx(i + 1, j + 1), idx(i + 1, j)
             F += [[a, d, cc], [a, cc, b]]
     return V, np.array(F, dtype=np.int64)
+
+
+def with_ear(V: np.ndarray, F: np.ndarray, uv: np.ndarray, fold: bool) -> tuple[np.ndarray, np.ndarray, int]:
+    """(V, F) with one more triangle on its border, over the bottom boundary edge nearest a fifth of the width of
+    the flat layout ``uv``: a scan's border ear whose tip is a new vertex. ``fold``: the ear is folded under the
+    surface (a projection flips it); else its tip is the edge's midpoint (a zero-area face). Returns (V, F, tip)."""
+    from heatparam.mesh.topology import boundary_edges
+
+    be = boundary_edges(F)  # oriented as in their faces: the surface on the left in uv
+    lo = uv[:, 1].min()
+    mid_uv = 0.5 * (uv[be[:, 0]] + uv[be[:, 1]])
+    bottom = np.flatnonzero(np.isclose(mid_uv[:, 1], lo, atol=1e-9))
+    target = uv[:, 0].min() + 0.2 * np.ptp(uv[:, 0])
+    u, w = be[bottom[np.argmin(np.abs(mid_uv[bottom, 0] - target))]]
+    face = np.flatnonzero(((F == u) | (F == w)).sum(axis=1) == 2)[0]
+    k = [v for v in F[face] if v not in (u, w)][0]
+    mid, edge = 0.5 * (V[u] + V[w]), V[w] - V[u]
+    inward = V[k] - mid - (V[k] - mid) @ edge / (edge @ edge) * edge
+    inward /= np.linalg.norm(inward)
+    normal = np.cross(edge, inward)
+    normal /= np.linalg.norm(normal)
+    L = float(np.linalg.norm(edge))
+    tip = mid + (0.4 * L * inward - 0.5 * L * normal if fold else 0.0)
+    return np.vstack([V, tip]), np.vstack([F, [w, u, len(V)]]), len(V)

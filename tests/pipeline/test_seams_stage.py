@@ -32,3 +32,17 @@ def test_cut_mesh_skips_the_heat_stage_with_the_same_map(case, kw, why):
     assert a.report["method"]["geodesics"].startswith(f"skipped: {why}")
     assert not b.report["method"]["geodesics"].startswith("skipped")
     assert np.array_equal(a.uv, b.uv) and np.array_equal(a.Fuv, b.Fuv)
+
+
+def test_a_folded_border_ear_leaves_the_cut_mesh_its_projection_start():
+    """A projection that folds one border ear under its neighbour used to be refused as the cut mesh's start (a
+    flipped face whose corners the repair cannot move): the refinement then started from Tutte."""
+    from conftest import with_ear
+
+    s = datasets.cylinder_with_holes()
+    V, F, _ = with_ear(s.V, s.F, s.uv_true, fold=True)
+    r = parameterize(V, F, seams="holes")
+    rep = r.report["method"]["seams"]["projection_reopened"]
+    assert "reason" not in rep and rep["unflipped"]["repaired"] and rep["unflipped"]["flips"] == 1
+    assert r.report["method"]["refine"]["start"]["layout"] != "tutte"
+    assert r.report["metrics"]["bijective"]

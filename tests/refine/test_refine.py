@@ -872,25 +872,25 @@ def test_repaired_layout_unfolds_a_few_flips_and_keeps_the_boundary():
     s = datasets.cylinder_patch()
     disk = tutte.build_disk(s.V, s.F)
     loops = [disk.outer, *disk.holes]
-    g, _ = energy.surface_gradients(s.V, s.F)
+    g, area = energy.surface_gradients(s.V, s.F)
     bad = _with_a_fold(s.uv_true, s.F, np.concatenate(loops))
     flips = int((np.linalg.det(energy.jacobians(bad, s.F, g)) <= 0).sum())
     assert 0 < flips <= start.MDS_REPAIR_MAX_FRACTION * len(s.F) + 1
-    z, info = start.repaired_layout(bad, s.F, g, loops)
+    z, info = start.repaired_layout(bad, s.F, g, area, loops)
     assert info["repaired"] and info["flips"] == flips
     assert (np.linalg.det(energy.jacobians(z, s.F, g)) > 0).all() and metrics.boundary_crossings(z, s.F) == 0
     bnd = np.concatenate(loops)
     assert np.array_equal(z[bnd], bad[bnd])  # the boundary is locked
-    z2, info2 = start.repaired_layout(s.uv_true, s.F, g, loops)
+    z2, info2 = start.repaired_layout(s.uv_true, s.F, g, area, loops)
     assert z2 is None and info2["reason"] == "nothing flipped"
 
 
 def test_repaired_layout_refuses_many_flips():
     s = datasets.cylinder_patch()
     disk = tutte.build_disk(s.V, s.F)
-    g, _ = energy.surface_gradients(s.V, s.F)
+    g, area = energy.surface_gradients(s.V, s.F)
     mirrored = s.uv_true * np.array([1.0, -1.0])  # every face flipped
-    z, info = start.repaired_layout(mirrored, s.F, g, [disk.outer, *disk.holes])
+    z, info = start.repaired_layout(mirrored, s.F, g, area, [disk.outer, *disk.holes])
     assert z is None and info["reason"] == "too many flips to repair"
 
 
@@ -977,3 +977,35 @@ def test_coarse_to_fine_drops_a_coarse_level_whose_scaffold_failed(monkeypatch):
     y, info = level.start()
     assert y is None and not info["used"] and "boundaries touch" in info["reason"], info
     assert level.run.stop is newton.Stop.SCAFFOLD_FAILED and info["coarse_polish"]["stop"].startswith("scaffold")
+
+
+@pytest.mark.parametrize("fold", [True, False], ids=["folded", "zero-area"])
+def test_unflipped_untangles_a_border_ear_the_mean_value_repair_cannot_reach(fold):
+    from heatparam.layout.projection import projection_layout
+    from heatparam.refine.untangle import BARRIER_EPS
+
+    from conftest import with_ear
+
+    s = datasets.flat_square()
+    V, F, tip = with_ear(s.V, s.F, s.uv_true, fold)
+    g, area = energy.surface_gradients(V, F)
+    loops = boundary_loops(F)
+    x = projection_layout(V, F)
+    D = energy.det(energy.jacobians(x, F, g))
+    assert np.flatnonzero(D <= BARRIER_EPS).tolist() == [len(F) - 1]  # the ear only: folded, or flat to round-off
+    locked = np.zeros(len(V), dtype=bool)
+    locked[np.concatenate(loops)] = True
+    if fold:  # its three corners are boundary vertices, which the mean value repair never moves
+        assert multilevel.repair_flips(x, x, F, g, locked)[0] is None
+    z, info = start.repaired_layout(x, F, g, area, loops)
+    assert info["repaired"] and info["ears"] == 1 and info["flips"] == int(D[-1] <= 0)
+    assert (energy.det(energy.jacobians(z, F, g)) > BARRIER_EPS).all() and metrics.boundary_crossings(z, F) == 0
+    moved = np.abs(z - x).max(axis=1) > 0
+    import igl
+
+    near = np.zeros(len(V), dtype=bool)
+    near[F[-1]] = True
+    near = multilevel.grow_rings(near, igl.adjacency_matrix(F), start.EAR_RINGS)
+    assert moved[tip] and not (moved & ~near).any()  # the ear's neighbourhood only
+    # the ear is the rest of the layout's only defect: no worse than its neighbourhood's energy after the repair
+    assert energy.normalized_energy(z, F, g, area) < 1.1

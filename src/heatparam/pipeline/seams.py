@@ -27,6 +27,7 @@ from heatparam.progress import Progress
 from heatparam.refine import Pausing
 from heatparam.refine.newton import Stop
 from heatparam.refine.reopen_slits import reopen_crossing_slits
+from heatparam.refine.start import separated_boundary, unflipped
 
 
 class Cut(NamedTuple):
@@ -189,7 +190,7 @@ def _reopened_conformal(cut_surface: Surface, source: np.ndarray) -> tuple[np.nd
         return None, {"reason": f"no conformal layout ({exc})"}
     if not np.isfinite(uv).all():
         return None, {"reason": "the conformal layout has non-finite coordinates"}
-    return reopen_crossing_slits(uv, cut_surface.F, source)
+    return _reopened(uv, cut_surface, source)
 
 
 def _reopened_projection(cut_surface: Surface, source: np.ndarray) -> tuple[np.ndarray | None, dict]:
@@ -200,7 +201,23 @@ def _reopened_projection(cut_surface: Surface, source: np.ndarray) -> tuple[np.n
     uv = projection_layout(cut_surface.V, cut_surface.F)
     if uv is None:
         return None, {"reason": NO_MEAN_PLANE}
-    return reopen_crossing_slits(uv, cut_surface.F, source)
+    return _reopened(uv, cut_surface, source)
+
+
+def _reopened(uv: np.ndarray, cut_surface: Surface, source: np.ndarray) -> tuple[np.ndarray | None, dict]:
+    """The cut surface's layout ``uv`` (n,2), a few flipped faces first unflipped (``refine.start.unflipped``: a
+    scan's border slivers fold in a projection), with its crossing slits reopened (``refine.reopen_slits``)."""
+    g, area = cut_surface.gradients()
+    z, repair = unflipped(uv, cut_surface.F, g, area, cut_surface.info.boundary_loops)
+    if z is None and repair["flips"]:
+        return None, {"reason": f"the layout has {repair['flips']} flipped faces ({repair['reason']})"}
+    x, report = reopen_crossing_slits(uv if z is None else z, cut_surface.F, source)
+    if z is not None:
+        report = {"unflipped": repair, **report}
+    if x is None:
+        return None, report
+    x, separated = separated_boundary(x, cut_surface.F, cut_surface.info.boundary_loops)
+    return x, report | separated
 
 
 def _left(f: Flat) -> Flat:

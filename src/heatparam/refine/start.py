@@ -20,8 +20,9 @@ from heatparam.layout.tutte import Disk, tutte
 from heatparam.mesh.topology import boundary_edges, boundary_loops
 from heatparam.options import ISOMETRIC_START_EXCESS
 from heatparam.refine.energy import det, jacobians, normalized_energy, surface_gradients
-from heatparam.refine.multilevel import repair_flips
+from heatparam.refine.multilevel import grow_rings, repair_flips
 from heatparam.refine.reopen_slits import push_apart
+from heatparam.refine.untangle import BARRIER_EPS, untangle
 
 
 def bijectivity(uv: np.ndarray, F: np.ndarray, g: np.ndarray) -> tuple[int, int]:
@@ -33,31 +34,74 @@ def bijectivity(uv: np.ndarray, F: np.ndarray, g: np.ndarray) -> tuple[int, int]
         return flips, -1
     return 0, int(metrics.boundary_crossings(uv, F)) + metrics.inverted_loops(uv, F)
 
-#: An MDS layout with a few flipped faces (at most this fraction, and at least 1) is repaired before it competes as a
-#: start: ``repair_flips`` with the boundary locked, accepted only when the result is bijective (a noisy 49k-vertex
-#: patch: 3 flips repaired, then half the Newton iterations for the same map quality).
+#: A layout with a few flipped faces (at most this fraction, and at least 1) is repaired before it competes as a
+#: start (:func:`unflipped`), accepted only when the result is bijective (a noisy 49k-vertex patch's MDS layout: 3
+#: flips repaired, then half the Newton iterations for the same map quality).
 MDS_REPAIR_MAX_FRACTION = 1e-3
 
-def repaired_layout(x: np.ndarray, F: np.ndarray, g: np.ndarray, loops: list[np.ndarray]
-                    ) -> tuple[np.ndarray | None, dict]:
-    """``x`` (n,2) made bijective by :func:`repair_flips` if only a few of its faces are flipped
-    (≤ ``MDS_REPAIR_MAX_FRACTION``), with the boundary loops locked; (layout or None, report)."""
-    flips = int((det(jacobians(x, F, g)) <= 0).sum())
-    if flips == 0:
-        return None, {"flips": 0, "repaired": False, "reason": "nothing flipped"}
-    if flips > max(1, MDS_REPAIR_MAX_FRACTION * len(F)):
-        return None, {"flips": flips, "repaired": False, "reason": "too many flips to repair"}
+#: A border ear (a face whose three corners are boundary vertices) that a layout folds or flattens is untangled in
+#: this many rings around it (:func:`unflipped`)
+EAR_RINGS = 2
+
+
+def unflipped(x: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray]
+              ) -> tuple[np.ndarray | None, dict]:
+    """``x`` (n,2) without flipped faces, if only a few are (≤ ``MDS_REPAIR_MAX_FRACTION``).
+
+    First the border ears (faces whose three corners are boundary vertices) that ``x`` flips or flattens to
+    round-off (det J ≤ ``BARRIER_EPS``: a projection folds a scan's border sliver under its neighbour, a zero-area
+    ear stays flat), which the repair below never moves: ``untangle`` of their ``EAR_RINGS``-ring neighbourhood,
+    their own corners free. Then the other flipped faces: ``repair_flips``, the boundary loops locked. Untangling
+    more than the ears was measured and not kept: a projection's 342 folds, untangled, won the start by energy and
+    its fine level began at energy 1.55 (docs/refine.md §10). Boundary crossings are not checked here.
+    g (m,3,2), area (m,): the rest triangles' hat gradients and areas. Returns (layout or None, report)."""
+    D = det(jacobians(x, F, g))
     locked = np.zeros(len(x), dtype=bool)
     locked[np.concatenate(loops)] = True
-    z, _, rounds = repair_flips(x, x, F, g, locked)
+    flipped, ears = D <= 0, (D <= BARRIER_EPS) & locked[F].all(axis=1)
+    bad = int((flipped | ears).sum())
+    report: dict = {"flips": int(flipped.sum())}
+    if bad == 0:
+        return None, report | {"repaired": False, "reason": "nothing flipped"}
+    if bad > max(1, MDS_REPAIR_MAX_FRACTION * len(F)):
+        return None, report | {"repaired": False, "reason": "too many flips to repair"}
+    z = x
+    if ears.any():
+        report["ears"] = int(ears.sum())
+        z = _untangled_ears(x, F, g, area, locked, ears)
+        if z is None:
+            return None, report | {"repaired": False, "reason": "a border ear could not be untangled"}
+    z, _, rounds = repair_flips(z, z, F, g, locked)
     if z is None:
-        return None, {"flips": flips, "repaired": False, "reason": f"flips remain after {rounds} rounds"}
+        return None, report | {"repaired": False, "reason": f"flips remain after {rounds} rounds"}
+    return z, report | {"repaired": True, "rounds": rounds}
+
+
+def _untangled_ears(x: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, locked: np.ndarray,
+                    ears: np.ndarray) -> np.ndarray | None:
+    """``x`` with the ``ears`` (m,) bool faces untangled (:func:`unflipped`), or None."""
+    import igl
+
+    corners = np.zeros(len(x), dtype=bool)
+    corners[F[ears].ravel()] = True
+    free = (grow_rings(corners, igl.adjacency_matrix(F), EAR_RINGS) & ~locked) | corners
+    near = free[F].any(axis=1)  # only these faces move: the flips elsewhere are the mean value repair's
+    z, _ = untangle(x, F[near], g[near], area[near], free, floor=BARRIER_EPS)
+    return z
+
+
+def repaired_layout(x: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray]
+                    ) -> tuple[np.ndarray | None, dict]:
+    """``x`` (n,2) made bijective by :func:`unflipped`, or None when it is not bijective then (its boundary
+    crosses, or a hole is turned inside out); (layout or None, report)."""
+    z, report = unflipped(x, F, g, area, loops)
+    if z is None:
+        return None, report
     if metrics.boundary_crossings(z, F):
-        return None, {"flips": flips, "repaired": False, "reason": "the boundary crosses itself"}
+        return None, report | {"repaired": False, "reason": "the boundary crosses itself"}
     if metrics.inverted_loops(z, F):
-        return None, {"flips": flips, "repaired": False,
-                      "reason": "a hole is turned inside out (the layout covers it twice)"}
-    return z, {"flips": flips, "repaired": True, "rounds": rounds}
+        return None, report | {"repaired": False, "reason": "a hole is turned inside out (the layout covers it twice)"}
+    return z, report
 
 class LscmStart(NamedTuple):
     """The conformal layout as a start candidate: the layout (None if it failed; repaired when ``repair`` says so),
@@ -94,7 +138,7 @@ def lscm_start(V: np.ndarray, F: np.ndarray, conformal: Callable[[], np.ndarray]
     flips, cross = bijectivity(xl, F, g)
     repair = None
     if flips:
-        z, repair = repaired_layout(xl, F, g, boundary_loops(F))
+        z, repair = repaired_layout(xl, F, g, area, boundary_loops(F))
         if z is not None:
             return LscmStart(z, flips, cross, normalized_energy(z, F, g, area), None, repair)
     e = normalized_energy(xl, F, g, area) if flips == 0 and cross == 0 else None
@@ -125,7 +169,7 @@ def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk
             report["mds_rejected"] = "non-finite coordinates"
             x = None
         elif flips:  # crossings are only counted when nothing is flipped; a repaired layout has none
-            x, report["repair"] = repaired_layout(x, F, g, disk.loops)
+            x, report["repair"] = repaired_layout(x, F, g, area, disk.loops)
             cross = 0
         if x is not None and not cross:
             cands["mds"], energies["mds"] = x, normalized_energy(x, F, g, area)
@@ -136,7 +180,7 @@ def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk
         report["conformal_repair"] = lscm.repair
     if lscm.energy is not None:
         cands["conformal"], energies["conformal"] = lscm.uv, lscm.energy
-    xp, report["projection"] = _projection(V, F, g, disk)
+    xp, report["projection"] = _projection(V, F, g, area, disk)
     if xp is not None:
         cands["projection"], energies["projection"] = xp, normalized_energy(xp, F, g, area)
     for name, xe in (extra or {}).items():
@@ -162,7 +206,8 @@ def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk
     return x, report
 
 
-def _projection(V: np.ndarray, F: np.ndarray, g: np.ndarray, disk: Disk) -> tuple[np.ndarray | None, dict]:
+def _projection(V: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, disk: Disk
+                ) -> tuple[np.ndarray | None, dict]:
     """The projection onto the mean plane (``layout.projection``) as a start candidate: (the layout when it is
     bijective, a few flipped faces repaired as MDS's are, else None; the report's ``start.projection``). Boundary
     vertices that a bijective projection puts on one point (the copies of a vertex that the atlas's repair split,
@@ -174,18 +219,26 @@ def _projection(V: np.ndarray, F: np.ndarray, g: np.ndarray, disk: Disk) -> tupl
     flips, cross = bijectivity(x, F, g)
     report: dict = {"flips": flips, "crossings": cross}
     if flips:
-        x, report["repair"] = repaired_layout(x, F, g, disk.loops)
+        x, report["repair"] = repaired_layout(x, F, g, area, disk.loops)
         if x is None:
             return None, report
         report["crossings"] = cross = 0
     if cross:
         return None, report
-    bnd = np.concatenate(disk.loops)
+    x, separated = separated_boundary(x, F, disk.loops)
+    return x, report | separated
+
+
+def separated_boundary(x: np.ndarray, F: np.ndarray, loops: list[np.ndarray]) -> tuple[np.ndarray | None, dict]:
+    """The bijective layout ``x`` (n,2) with boundary vertices that share a point (the copies of a vertex that the
+    atlas's repair split, at one 3D position, projected) pushed into their own sides (``reopen_slits.push_apart``):
+    the scaffold needs distinct boundary points. (layout or None, the report's ``separated`` part: {} when none
+    shared a point)."""
+    bnd = np.concatenate(loops)
     _, at, count = np.unique(x[bnd], axis=0, return_inverse=True, return_counts=True)
     shared = bnd[count[at.ravel()] > 1]
-    if len(shared):
-        report["separated"] = int(len(shared))
-        x, pushed = push_apart(x, F, boundary_edges(F), shared)
-        if x is None:
-            return None, report | {"reason": pushed["reason"]}
-    return x, report
+    if not len(shared):
+        return x, {}
+    z, pushed = push_apart(x, F, boundary_edges(F), shared)
+    report = {"separated": int(len(shared))}
+    return z, report if z is not None else report | {"reason": pushed["reason"]}

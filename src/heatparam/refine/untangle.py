@@ -49,7 +49,7 @@ NEWTON_MAX_ITERS = 50
 BARRIER_EPS = 1e-6
 
 
-def untangle(x: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, free: np.ndarray
+def untangle(x: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, free: np.ndarray, floor: float = 0.0
              ) -> tuple[np.ndarray | None, int]:
     """Move the ``free`` vertices of the layout ``x`` until no triangle of F is flipped (module docstring).
 
@@ -58,6 +58,8 @@ def untangle(x: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, free
     x : (n,2) float64 layout, some triangles flipped (det J ≤ 0).
     F : (m,3) int64 triangles; g : (m,3,2) hat gradients of their rest (3D) triangles; area : (m,) their areas.
     free : (n,) bool, the vertices that may move; every other vertex keeps its position exactly.
+    floor : a triangle whose det J is at most this counts as flipped (``BARRIER_EPS``: degenerate to round-off,
+        below where the last minimization's barrier acts).
 
     Returns
     -------
@@ -68,16 +70,16 @@ def untangle(x: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, free
         return None, 0
     held = np.ones(len(F), dtype=bool)
     held[faces] = False
-    if (det(jacobians(x, F[held], g[held])) <= 0).any():  # a flipped triangle without a free corner stays so
+    if (det(jacobians(x, F[held], g[held])) <= floor).any():  # a flipped triangle without a free corner stays so
         return None, 0
     region = _Region(x, F[faces], g[faces], area[faces], free)
     eps = max(1e-3, 2.0 * abs(min(float(region.dets().min()), 0.0)))
     for r in range(1, UNTANGLE_ROUNDS + 1):
         region.minimize(eps)
-        if not region.flipped():
+        if not region.flipped(floor):
             good = region.y.copy()
             region.minimize(BARRIER_EPS)
-            if region.flipped() or not np.isfinite(region.y).all():  # keep the flip-free layout of the last round
+            if region.flipped(floor) or not np.isfinite(region.y).all():  # keep the flip-free layout of the last round
                 region.y[:] = good
             y = np.array(x, dtype=np.float64, copy=True)
             y[region.verts] = region.y
@@ -117,8 +119,8 @@ class _Region:
     def dets(self) -> np.ndarray:
         return det(jacobians(self.y, self.F, self.g))
 
-    def flipped(self) -> bool:
-        return bool((self.dets() <= 0).any())
+    def flipped(self, floor: float = 0.0) -> bool:
+        return bool((self.dets() <= floor).any())
 
     def energy(self, y: np.ndarray, eps: float) -> float:
         J = jacobians(y, self.F, self.g)
