@@ -105,3 +105,20 @@ def test_degenerate_faces_collinear_and_point_like():
     V = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [1, 1, 0], [1, 1e-9, 0]])
     F = np.array([[0, 1, 3], [0, 2, 1], [0, 0, 0], [0, 2, 4]])
     assert degenerate_faces(V, F).tolist() == [False, True, True, False]  # a sliver of height 1e-9 has an area
+
+
+def test_boundary_edges_memo_follows_the_faces_content():
+    """Boundary edges are remembered per face content: asked again they are the same; faces changed in place give
+    the new mesh's; a returned array is the caller's own."""
+    from heatparam.mesh.topology import _boundary_edges, boundary_edges
+
+    _, F = flat_disk()
+    first = boundary_edges(F)
+    first[:] = -1  # the caller's copy: the memo keeps its own
+    again = boundary_edges(F)
+    assert np.array_equal(again, _boundary_edges(np.asarray(F, dtype=np.int64)))
+    G = F.copy()
+    boundary_edges(G)
+    G[0] = G[1]  # in place: face 0's edges lose a face, face 1's gain one
+    assert np.array_equal(boundary_edges(G), _boundary_edges(G))
+    assert not np.array_equal(boundary_edges(G), again)

@@ -6,6 +6,9 @@ boundary loop, a unique edge list or the referenced vertices calls these.
 
 from __future__ import annotations
 
+import hashlib
+import threading
+from collections import OrderedDict
 from typing import NamedTuple
 
 import numpy as np
@@ -85,6 +88,14 @@ def repeated_vertex_faces(F: np.ndarray) -> np.ndarray:
 def _half_edges(F: np.ndarray) -> np.ndarray:
     return np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
 
+#: The boundary edges of the last few meshes asked, keyed by the faces' content (SHA-256 of F: 4 ms at 300k faces,
+#: the edges 50 ms): the start checks, the crossing checks of every candidate and prolongation, and the loops ask
+#: again for the same faces (a 262k-face part: 23 calls, 1.1 s)
+_BOUNDARY_MEMO_SIZE = 4
+_boundary_memo: OrderedDict[tuple, np.ndarray] = OrderedDict()
+_boundary_lock = threading.Lock()
+
+
 def boundary_edges(F: np.ndarray) -> np.ndarray:
     """Edges used by exactly one face.
 
@@ -95,11 +106,26 @@ def boundary_edges(F: np.ndarray) -> np.ndarray:
     Returns
     -------
     (b, 2) int64
-        Vertex pairs, oriented as in their face.
+        Vertex pairs, oriented as in their face (a new array).
     """
-    F = np.asarray(F, dtype=np.int64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
     if F.size == 0:
         return np.zeros((0, 2), np.int64)
+    key = (F.shape, hashlib.sha256(memoryview(F)).digest())
+    with _boundary_lock:
+        edges = _boundary_memo.get(key)
+        if edges is not None:
+            _boundary_memo.move_to_end(key)
+            return edges.copy()
+    edges = _boundary_edges(F)
+    with _boundary_lock:
+        _boundary_memo[key] = edges
+        while len(_boundary_memo) > _BOUNDARY_MEMO_SIZE:
+            _boundary_memo.popitem(last=False)
+    return edges.copy()
+
+
+def _boundary_edges(F: np.ndarray) -> np.ndarray:
     he = _half_edges(F)
     lo = he.min(axis=1)
     hi = he.max(axis=1)
