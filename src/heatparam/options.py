@@ -120,7 +120,7 @@ OPTIONS: tuple[Option, ...] = (
            group="heat"),
     Option("time_step", "default", "time", "heat time: default t = c·h² (h = mean edge, scale-invariant); paper = "
            "Eq. 7 (longest edge; not scale-invariant); or a positive number", TIME_STEPS, flag="--time-step",
-           metavar="{default,paper}|T", short="heat time: c·h², Eq. 7 or a number", group="heat"),
+           metavar="{default,paper}|T", short="c·h² (default), Eq. 7 (paper) or T", group="heat"),
     Option("t_coef", 1.0, "float", "the c in t = c·h² for time_step default", low=0.0, high=T_COEF_MAX,
            flag="--t-coef", metavar="C", positive=True, short="the c in t = c·h²", group="heat"),
     Option("mass", "lumped", "choice", "mass matrix B: lumped (default: the consistent one of Eq. 6 gives heat "
