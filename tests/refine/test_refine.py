@@ -1009,3 +1009,26 @@ def test_unflipped_untangles_a_border_ear_the_mean_value_repair_cannot_reach(fol
     assert moved[tip] and not (moved & ~near).any()  # the ear's neighbourhood only
     # the ear is the rest of the layout's only defect: no worse than its neighbourhood's energy after the repair
     assert energy.normalized_energy(z, F, g, area) < 1.1
+
+
+def test_a_start_within_one_percent_of_an_isometry_stops_at_the_fine_tolerance():
+    """No coarse level for a start within ``MULTILEVEL_MIN_EXCESS`` of an isometry: it is polished with the loosened
+    tolerance a fine level gets from a converged coarse one, to the same minimum in no more iterations."""
+    s = datasets.cylinder_patch(h=0.03)
+    g, area = energy.surface_gradients(s.V, s.F)
+    loops = boundary_loops(s.F)
+    u, v = s.uv_true[:, 0], s.uv_true[:, 1]
+    x = s.uv_true + 0.02 * np.column_stack([np.sin(3 * v), np.sin(2 * u)])  # a smooth stretch, no flip
+    e0 = energy.normalized_energy(x, s.F, g, area)
+    assert 1.0 < e0 < 1.0 + multilevel.MULTILEVEL_MIN_EXCESS
+    tol = 1e-6
+    runs = {}
+    for name, min_vertices in (("never", 0), ("from 100 vertices", 100)):
+        settings = multilevel.LevelSettings(min_vertices=min_vertices, tol=tol)
+        run, rep = multilevel.multilevel_polish(s.V, s.F, x, loops, g, area, settings)
+        runs[name] = (run.report(), rep)
+    (strict, _), (loose, rep) = runs["never"], runs["from 100 vertices"]
+    assert len(s.V) >= 100 and rep["reason"] == "the start is already within 1% of an isometry"
+    assert rep["fine_tol"] == pytest.approx(multilevel.MULTILEVEL_FINE_TOL_FACTOR * tol)
+    assert loose["iterations"] < strict["iterations"]
+    assert loose["energy_end"] == pytest.approx(strict["energy_end"], rel=1e-4)
