@@ -52,10 +52,9 @@ def unflipped(x: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loo
     three corners are boundary vertices: a projection folds a scan's border sliver under its neighbour, a zero-area
     ear stays flat), which the repair below never moves: ``untangle`` of their ``EAR_RINGS``-ring neighbourhood,
     their own corners free. Else (unless ``ears_only``: None) the flipped faces go to ``repair_flips``, the boundary
-    loops locked. A layout that
-    also folds elsewhere was a poor start with its ears untangled (a held-out mask's projection, 126 folds and 3
-    ears: iso 1.0198 → 1.0360 against Tutte), and untangling every fold lost too (docs/refine.md §10). Boundary
-    crossings are not checked here.
+    loops locked. A layout that also folds elsewhere was a poor start with its ears untangled (a held-out mask's
+    projection, 126 folds and 3 ears: iso 1.0198 → 1.0360 against Tutte's start), and untangling every fold lost
+    too (docs/refine.md §10). Boundary crossings are not checked here.
     g (m,3,2), area (m,): the rest triangles' hat gradients and areas. Returns (layout or None, report)."""
     D = det(jacobians(x, F, g))
     locked = np.zeros(len(x), dtype=bool)
