@@ -83,3 +83,18 @@ def with_ear(V: np.ndarray, F: np.ndarray, uv: np.ndarray, fold: bool) -> tuple[
     L = float(np.linalg.norm(edge))
     tip = mid + (0.4 * L * inward - 0.5 * L * normal if fold else 0.0)
     return np.vstack([V, tip]), np.vstack([F, [w, u, len(V)]]), len(V)
+
+
+def spiked_cylinder(amp: float = 6.0) -> tuple[np.ndarray, np.ndarray]:
+    """A cylinder patch rolled past a half turn (angle 4.5, edge h = 0.06: 2258 vertices) whose border has six
+    spikes, every 37th boundary vertex pushed ``amp`` × h outwards: scanner outliers at the border, which fold its
+    conformal layout (its projection folds anyway) but not the conformal layout of the surface smoothed."""
+    from heatparam import datasets
+    from heatparam.mesh.topology import boundary_loops
+
+    s = datasets.cylinder_patch(angle=4.5, h=0.06)
+    V = s.V.copy()
+    for v in boundary_loops(s.F)[0][::37][:6]:
+        radial = V[v] * [1.0, 0.0, 1.0]  # the patch is rolled around the y axis
+        V[v] += amp * 0.06 * radial / np.linalg.norm(radial)
+    return V, s.F

@@ -139,9 +139,9 @@ OPTIONS: tuple[Option, ...] = (
            low=1, high=10_000, short="sources of the report's sampled stress", group="heat"),
     Option("refine", "sd", "choice", "sd = a bijective start (the lower-energy bijective one of the MDS layout and "
            "the conformal one (spectral, no pins), either with <= 0.1% of its triangles flipped repaired "
-           "first; else Tutte) polished by projected-Newton symmetric Dirichlet at true scale inside a "
-           "re-triangulated scaffold, so no triangle flips and no boundary crosses another (docs/refine.md); "
-           "none = the paper's raw MDS map",
+           "first; else the conformal layout of the surface smoothed, else Tutte) polished by projected-Newton "
+           "symmetric Dirichlet at true scale inside a re-triangulated scaffold, so no triangle flips and no "
+           "boundary crosses another (docs/refine.md); none = the paper's raw MDS map",
            REFINE_MODES, flag="--refine", short="sd = bijective polish; none = raw MDS", group="refine"),
     Option("mds_start", "auto", "choice", "with refine sd, whether the fill, the heat geodesics and MDS run to offer "
            "the MDS layout as a start candidate. auto skips them (a) when the conformal layout is bijective and "
@@ -153,8 +153,8 @@ OPTIONS: tuple[Option, ...] = (
            "such part measured; §18). Skipped, the report's stress_rel_rms is null. auto never skips them when "
            "fill, geodesics, landmarks or stress is set explicitly. always = compute them as a start candidate "
            "anyway (in an atlas: every chart through the pipeline instead of the charts' joint polish); never = "
-           "skip them (the conformal layout or Tutte starts; an atlas's charts are polished together from LSCM "
-           "unless this is always: BENCHMARKS §10)",
+           "skip them (the conformal layout, or the smoothed surface's, or Tutte starts; an atlas's charts are "
+           "polished together from LSCM unless this is always: BENCHMARKS §10)",
            MDS_START_MODES, flag="--mds-start", short="when MDS competes for the start", group="refine"),
     Option("seams", "auto", "choice", "cut holes open to the border along the shortest surface paths: auto = when "
            "the map without seams is more than {SEAM_TRY_EXCESS:.2%} from an isometry, and on large meshes its "

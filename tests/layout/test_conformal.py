@@ -148,3 +148,21 @@ def test_zero_area_faces_take_the_mollified_cotangents():
     assert np.isfinite(uv).all()
     st = lscm_start(V, F, lambda: uv)  # a start the polish can take: bijective once the sliver is repaired
     assert st.energy is not None and st.near_isometric
+
+
+def test_smoothed_layout_keeps_the_true_area_and_unfolds_border_spikes():
+    from heatparam.layout.conformal import smoothed_conformal_layout
+    from heatparam.mesh.planar import signed_areas
+    from heatparam.mesh.topology import face_areas
+    from heatparam.refine.energy import surface_gradients
+    from heatparam.refine.start import bijectivity
+
+    from conftest import spiked_cylinder
+
+    V, F = spiked_cylinder()
+    g, _ = surface_gradients(V, F)
+    assert bijectivity(conformal_layout(V, F), F, g) != (0, 0)  # the spikes fold the border
+    uv = smoothed_conformal_layout(V, F, 4)
+    assert bijectivity(uv, F, g) == (0, 0)
+    assert np.isclose(signed_areas(uv, F).sum(), face_areas(V, F).sum(), rtol=1e-9)  # V's area, not the smoothed
+    np.testing.assert_array_equal(smoothed_conformal_layout(V, F, 0), conformal_layout(V, F))

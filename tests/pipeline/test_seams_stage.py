@@ -46,3 +46,32 @@ def test_a_folded_border_ear_leaves_the_cut_mesh_its_projection_start():
     assert "reason" not in rep and rep["unflipped"]["repaired"] and rep["unflipped"]["flips"] == 1
     assert r.report["method"]["refine"]["start"]["layout"] != "tutte"
     assert r.report["metrics"]["bijective"]
+
+
+def test_a_spiked_border_gives_the_cut_mesh_its_smoothed_conformal_start(monkeypatch):
+    """Outliers on the border fold the cut mesh's conformal layout beyond repair, and a cylinder rolled past a half
+    turn folds its projection: the cut map starts from the conformal layout of the smoothed cut mesh, whose
+    crossing slits would be reopened as the conformal layout's are, instead of Tutte's embedding."""
+    import heatparam.pipeline as pl
+    import heatparam.pipeline.seams as seams
+    from heatparam.mesh.topology import boundary_loops
+
+    s = datasets.cylinder_with_holes(angle=4.5, h=0.06)
+    V = s.V.copy()
+    for v in max(boundary_loops(s.F), key=len)[::29][:8]:  # outliers on the outer border, 6 edges out
+        radial = V[v] * [1.0, 0.0, 1.0]
+        V[v] += 6 * 0.06 * radial / np.linalg.norm(radial)
+    repairs = []
+    flatten = pl.flatten
+
+    def spy(surface, *args, **kw):
+        repairs.append(kw.get("repair"))
+        return flatten(surface, *args, **kw)
+
+    monkeypatch.setattr(pl, "flatten", spy)  # the seams stage is handed pipeline.flatten
+    r = parameterize(V, s.F, seams="holes")
+    start = r.report["method"]["refine"]["start"]
+    assert "flipped faces" in r.report["method"]["seams"]["conformal_reopened"]["reason"]
+    assert start["layout"] == "conformal_smoothed" and start["energy"]["conformal_smoothed"] < 2.0
+    assert r.seamed and r.report["metrics"]["bijective"]
+    assert [rp.func for rp in repairs if rp is not None] == [seams._reopened]

@@ -1032,3 +1032,34 @@ def test_a_start_within_one_percent_of_an_isometry_stops_at_the_fine_tolerance()
     assert rep["fine_tol"] == pytest.approx(multilevel.MULTILEVEL_FINE_TOL_FACTOR * tol)
     assert loose["iterations"] < strict["iterations"]
     assert loose["energy_end"] == pytest.approx(strict["energy_end"], rel=1e-4)
+
+
+def test_no_bijective_start_falls_back_to_the_smoothed_conformal_layout_before_tutte():
+    from conftest import spiked_cylinder
+
+    V, F = spiked_cylinder()
+    g, area = energy.surface_gradients(V, F)
+    uv, rep = refine.refine(V, F, None, refine.RefineParams(multilevel=0))
+    st = rep["start"]
+    assert st["conformal_flips"] > 0 and st["projection"]["flips"] > 0  # both candidates fold, beyond repair
+    assert st["layout"] == "conformal_smoothed" and st["conformal_smoothed"]["steps"] == start.SMOOTHING_STEPS
+    x_tutte = tutte.tutte(V, tutte.build_disk(V, F))[: len(V)]
+    excess = st["energy"]["conformal_smoothed"] - 1.0  # 0.68 against Tutte's 1.98
+    assert excess < 0.5 * (energy.normalized_energy(x_tutte, F, g, area) - 1.0)
+    assert rep["bijective"]
+
+
+def test_tutte_when_the_smoothed_layouts_fold_too():
+    from conftest import spiked_cylinder
+
+    V, F = spiked_cylinder()
+    g, area = energy.surface_gradients(V, F)
+    disk = tutte.build_disk(V, F)
+    folded = conformal_layout(V, F)
+    asked = []
+    fallback = start.SmoothedStart(lambda steps: asked.append(steps) or folded,
+                                   lambda x: start.repaired_layout(x, F, g, area, disk.loops), F, g)
+    x, rep = start.choose_start(V, F, None, disk, g, area, None, None, "auto", fallback=fallback)
+    assert asked == [start.SMOOTHING_STEPS] and rep["layout"] == "tutte"
+    assert not rep["conformal_smoothed"]["repair"]["repaired"]
+    assert start.bijectivity(x, F, g) == (0, 0)

@@ -19,6 +19,8 @@ Each stage returns its value and its part of the report; the report is assembled
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -36,6 +38,7 @@ from heatparam.pipeline.shortcuts import heat_stage_optional, start_checks
 from heatparam.pipeline.surface import Surface
 from heatparam.progress import Progress
 from heatparam.refine import NO_PAUSE, Pausing, Refinement, RefineParams, polish_bytes
+from heatparam.refine.start import SmoothedStart, repaired_layout
 
 #: Peak memory of the pipeline without the refinement, per vertex (landmark path): ``refine none`` peaked at
 #: 3.5-3.9 KB per vertex on camelhead↑727k and 4.4-5.9 KB on camelhead↑182k, interpreter and libraries included
@@ -156,19 +159,23 @@ def _check_memory(n: int, m: int, opts: Options) -> None:
 
 
 def flatten(surface: Surface, opts: Options, prog: Progress, *, seamed: bool = False,
-            starts: dict[str, np.ndarray] | None = None, pausing: Pausing = NO_PAUSE) -> Flat:
+            starts: dict[str, np.ndarray] | None = None, pausing: Pausing = NO_PAUSE,
+            repair: Callable[[np.ndarray], tuple[np.ndarray | None, dict]] | None = None) -> Flat:
     """The stages on one surface (``seamed``: cut open by the seams stage, whose seams a fill would close again;
     ``starts``: further named start layouts (n,2) for the refinement; ``pausing``: how the polish may pause,
-    ``refine.Pausing``: the Flat's ``resume`` then finishes it, so that the seams stage decides on paused maps)."""
-    return _Flattening(surface, opts, prog, starts, pausing).run(seamed)
+    ``refine.Pausing``: the Flat's ``resume`` then finishes it, so that the seams stage decides on paused maps;
+    ``repair``: how the refinement's fallback start, the smoothed surface's conformal layout, is made bijective,
+    ``refine.start.SmoothedStart``: default ``refine.start.repaired_layout``)."""
+    return _Flattening(surface, opts, prog, starts, pausing, repair).run(seamed)
 
 
 class _Flattening:
     """:func:`flatten`: the fill decision, the start checks, the heat stage (when it can win), the refinement."""
 
     def __init__(self, surface: Surface, opts: Options, prog: Progress, starts: dict[str, np.ndarray] | None,
-                 pausing: Pausing):
+                 pausing: Pausing, repair: Callable[[np.ndarray], tuple[np.ndarray | None, dict]] | None = None):
         self.surface, self.opts, self.prog, self.starts, self.pausing = surface, opts, prog, starts, pausing
+        self.repair = repair
         self.label = ""
 
     def run(self, seamed: bool) -> Flat:
@@ -196,7 +203,7 @@ class _Flattening:
         except HeatparamError as exc:
             if opts.refine == "none" or opts.mds_start != "auto" or not heat_stage_optional(opts):
                 raise  # the heat stage was asked for (or is the map itself): its failure is the answer
-            # otherwise it only offers a start: the refinement starts from the conformal layout or Tutte
+            # otherwise it only offers a start: the refinement starts from a conformal layout or Tutte
             why = (f"skipped: the heat stage failed ({exc}); the refinement starts from the conformal layout, or "
                    "Tutte when it is not bijective")
             fill = {"used": False, "reason": fill_reason, "skipped": why}
@@ -208,13 +215,22 @@ class _Flattening:
             return Flat(m.uv, summary, method, m.layout, m.fill_surface, m.warnings)
         return self.refined(m.uv, check, _Heat(m.layout, None, m.fill, m.fill_surface, m.warnings))
 
+    def fallback(self) -> SmoothedStart:
+        """The refinement's start before Tutte's: the conformal layout of the smoothed surface, made bijective by
+        ``repair`` (default ``refine.start.repaired_layout``)."""
+        s = self.surface
+        g, area = s.gradients()
+        repair = self.repair or functools.partial(repaired_layout, F=s.F, g=g, area=area,
+                                                  loops=s.info.boundary_loops)
+        return SmoothedStart(s.smoothed_conformal, repair, s.F, g)
+
     def refined(self, uv: np.ndarray | None, check, heat: _Heat) -> Flat:
         """The refinement from the MDS layout ``uv`` (None: the heat stage was skipped), as a Flat."""
         s = self.surface
         with self.prog.stage("refine"):
             rf = Refinement(s.V, s.F, uv, RefineParams.from_options(self.opts), progress=self.prog,
                             conformal=s.conformal, lscm=check.lscm, surface=s.gradients(), extra_starts=self.starts,
-                            pausing=self.pausing)
+                            pausing=self.pausing, fallback=self.fallback())
         return _Refined(self, rf, heat).flat()
 
 

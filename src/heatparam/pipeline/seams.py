@@ -9,6 +9,7 @@ the constraint instead of fighting it.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -103,7 +104,11 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat, flatten: Cal
     # first where its coarse level hands over (:func:`coarse_bound`)
     excess = seam_pause(surface, opts).excess
     pausing = Pausing(excess, park=False, fine_start=excess > 0)
-    maps = _Maps(flat, flatten(cut.surface, opts, prog, seamed=True, starts=starts or None, pausing=pausing))
+    # where no start of the cut mesh is bijective, its smoothed conformal layout is, its slits reopened like the
+    # conformal one's (a noisy border folds both), before Tutte's
+    reopen = functools.partial(_reopened, cut_surface=cut.surface, source=cut.source)
+    maps = _Maps(flat, flatten(cut.surface, opts, prog, seamed=True, starts=starts or None, pausing=pausing,
+                               repair=reopen))
     del flat  # from here on only ``maps`` holds the two maps, so that the one not kept can be freed
     return _chosen(opts, maps, cut, rep, float(surface.frame.lengths_to_model(sum(lengths))))
 

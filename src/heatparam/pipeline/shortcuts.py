@@ -19,8 +19,8 @@ The heat stage (fill, geodesics, MDS) is not computed when
     a few flips: on both such parts measured the MDS layout folded too (halftunnel upsampled to 201k: 52,925 flipped
     faces; a cylinder with holes and noise 0.3 × the edge at 182k: 249, beyond repair), the trial started from Tutte
     either way and the kept map was the same, so the heat stage (22-31 s there) is skipped: 67-81 → 58 s and
-    254 → 247 s (docs/history.md §18e). Where the trial's map is kept it has started from Tutte;
-    ``mds_start='always'`` computes the heat stage.
+    254 → 247 s (docs/history.md §18e). Where the trial's map is kept it has started from the conformal layout of
+    the smoothed surface, or Tutte (``refine.start.SmoothedStart``); ``mds_start='always'`` computes the heat stage.
 
 Tests compare (a) and (c) with ``mds_start="always"`` bit for bit, (b) and (d) by map quality.
 """
@@ -57,8 +57,8 @@ def start_checks(surface: Surface, opts, prog: Progress, seamed: bool = False, t
     with prog.stage("start check"):
         lscm = lscm_start(surface.V, surface.F, surface.conformal, surface.gradients())
     if opts.mds_start == "never":
-        return StartCheck(lscm, "skipped: mds_start='never' (the refinement starts from the conformal layout, or Tutte "
-                                "when it is not bijective)")
+        return StartCheck(lscm, "skipped: mds_start='never' (the refinement starts from the conformal layout, or the "
+                                "smoothed surface's, or Tutte when neither is bijective)")
     if lscm.near_isometric:
         return StartCheck(lscm, (f"skipped: the conformal layout is bijective and within {ISOMETRIC_START_EXCESS:g} of "
                                  f"an isometry (energy {lscm.energy:.7f}), so it starts the refinement "
@@ -73,7 +73,8 @@ def start_checks(surface: Surface, opts, prog: Progress, seamed: bool = False, t
         if trial:
             return StartCheck(lscm, ("skipped: the map without seams is the seams stage's trial on a large mesh whose "
                                      "conformal layout is not bijective even repaired, where MDS folded too on every "
-                                     "part measured; it starts from Tutte (mds_start='always' computes them)"))
+                                     "part measured; it starts from the smoothed surface's conformal layout or Tutte "
+                                     "(mds_start='always' computes them)"))
         return StartCheck(lscm, None)
     fixed = f"{lscm.flips} flipped faces repaired, " if lscm.repair is not None else ""
     return StartCheck(lscm, (f"skipped: the conformal layout is bijective ({fixed}energy {lscm.energy:.4f}) on a "

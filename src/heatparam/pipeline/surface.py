@@ -20,7 +20,8 @@ class Surface:
 
     ``conformal()`` (the spectral conformal layout scaled to the 3D area, read-only) and ``gradients()`` (the
     refinement's hat gradients and areas) are computed at most once and shared by the fill decision, the start
-    checks and the refinement. ``conformal_method``, ``conformal_max_solves``: how the spectral layout is solved
+    checks and the refinement; ``smoothed_conformal(steps)`` (the refinement's fallback start) once per ``steps``.
+    ``conformal_method``, ``conformal_max_solves``: how the spectral layouts are solved
     (``layout.conformal.spectral_conformal``'s ``method`` and ``max_solves``; the seams stage's cut-open mesh uses
     ``inverse`` and ``SCP_CUT_MAX_ITERS``).
     """
@@ -52,6 +53,16 @@ class Surface:
         uv0 = conformal_layout(self.V, self.F, method=self.conformal_method, max_solves=self.conformal_max_solves)
         uv0.setflags(write=False)
         return uv0
+
+    @functools.cache  # noqa: B019
+    def smoothed_conformal(self, steps: int) -> np.ndarray:
+        """The conformal layout of the surface smoothed by ``steps`` umbrella steps
+        (``layout.conformal.smoothed_conformal_layout``), (n,2), computed once per ``steps``."""
+        from heatparam.layout.conformal import smoothed_conformal_layout
+
+        uv = smoothed_conformal_layout(self.V, self.F, steps, self.conformal_method, self.conformal_max_solves)
+        uv.setflags(write=False)
+        return uv
 
     @functools.cache  # noqa: B019
     def gradients(self) -> tuple[np.ndarray, np.ndarray]:

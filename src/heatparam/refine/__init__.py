@@ -18,6 +18,7 @@ turns a layout into a bijective map at true scale:
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Callable
 from typing import NamedTuple
@@ -26,11 +27,12 @@ import numpy as np
 from threadpoolctl import ThreadpoolController
 
 from heatparam import metrics
+from heatparam.layout.conformal import smoothed_conformal_layout
 from heatparam.layout.tutte import build_disk
 from heatparam.options import MULTILEVEL_MIN_VERTICES
 from heatparam.refine.energy import det, jacobians, surface_gradients
 from heatparam.refine.multilevel import LevelSettings, multilevel_polish, run_polish
-from heatparam.refine.start import LscmStart, choose_start
+from heatparam.refine.start import LscmStart, SmoothedStart, choose_start, repaired_layout
 
 #: Peak memory of the refinement per surface face, above the rest of the pipeline: the peak RSS of the default run
 #: minus that of ``refine none`` measured 2.4 / 1.9 / 2.35 KB per face on camelhead↑45k / 182k / 727k
@@ -82,8 +84,8 @@ NO_PAUSE = Pausing()
 
 def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefineParams | None = None,
            progress=None, conformal: Callable[[], np.ndarray] | None = None, lscm: LscmStart | None = None,
-           surface: tuple[np.ndarray, np.ndarray] | None = None, extra_starts: dict[str, np.ndarray] | None = None
-           ) -> tuple[np.ndarray, dict]:
+           surface: tuple[np.ndarray, np.ndarray] | None = None, extra_starts: dict[str, np.ndarray] | None = None,
+           fallback: SmoothedStart | None = None) -> tuple[np.ndarray, dict]:
     """Make the layout ``uv`` (n,2) of (V (n,3), F (m,3)) bijective and near-isometric (true scale).
 
     Parameters
@@ -96,6 +98,8 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefinePa
     lscm : the conformal start already judged (``start.lscm_start``), if any.
     surface : ``energy.surface_gradients(V, F)`` if already computed.
     extra_starts : further named start candidates (n,2), judged with the others (``start.choose_start``).
+    fallback : the start tried before Tutte's when no candidate is bijective (``start.SmoothedStart``; default: the
+        conformal layout of (V, F) smoothed, repaired as the others are).
 
     Returns
     -------
@@ -111,7 +115,7 @@ def refine(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefinePa
     (True, 'conformal')
     """
     r = Refinement(V, F, uv, params, progress=progress, conformal=conformal, lscm=lscm, surface=surface,
-                   extra_starts=extra_starts)
+                   extra_starts=extra_starts, fallback=fallback)
     r.run()
     return r.x, r.report()
 
@@ -125,14 +129,18 @@ class Refinement:
     def __init__(self, V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, params: RefineParams | None = None, *,
                  progress=None, conformal: Callable[[], np.ndarray] | None = None, lscm: LscmStart | None = None,
                  surface: tuple[np.ndarray, np.ndarray] | None = None,
-                 extra_starts: dict[str, np.ndarray] | None = None, pausing: Pausing = NO_PAUSE):
+                 extra_starts: dict[str, np.ndarray] | None = None, pausing: Pausing = NO_PAUSE,
+                 fallback: SmoothedStart | None = None):
         t0 = time.perf_counter()
         params = RefineParams() if params is None else params
         self.F, self.progress = F, progress
         disk = build_disk(V, F)
         g, area = surface if surface is not None else surface_gradients(V, F)
         self.g = g
-        x, start = choose_start(V, F, uv, disk, g, area, lscm, conformal, params.solver, extra_starts)
+        if fallback is None:
+            fallback = SmoothedStart(functools.partial(smoothed_conformal_layout, V, F),
+                                     functools.partial(repaired_layout, F=F, g=g, area=area, loops=disk.loops), F, g)
+        x, start = choose_start(V, F, uv, disk, g, area, lscm, conformal, params.solver, extra_starts, fallback)
         self._report: dict = {"method": "sd", "holes": len(disk.holes), "start": start}
         self.x_start = x
         with _one_openblas_thread():
