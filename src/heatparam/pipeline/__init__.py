@@ -205,7 +205,7 @@ class _Flattening:
                 raise  # the heat stage was asked for (or is the map itself): its failure is the answer
             # otherwise it only offers a start: the refinement starts from a conformal layout or Tutte
             why = (f"skipped: the heat stage failed ({exc}); the refinement starts from the conformal layout, or "
-                   "Tutte when it is not bijective")
+                   "the smoothed surface's, or Tutte when neither is bijective")
             fill = {"used": False, "reason": fill_reason, "skipped": why}
             warning = f"the heat stage failed ({exc}): the map starts without MDS"
             return self.refined(None, check, _Heat(None, why, fill, None, [warning]))
