@@ -750,6 +750,50 @@ def test_coarse_to_fine_drops_a_coarse_level_that_stalls_far_from_its_minimum():
     assert not cp["converged"] and cp["energy_end"] - 1 > multilevel.COARSE_MIN_GAIN * (cp["energy_start"] - 1)
 
 
+@pytest.fixture(scope="module")
+def beetle_cut_from_tutte():
+    """beetle.off cut open along its seams: (V, F, loops, g, area, its Tutte layout, its conformal layout with the
+    slits reopened, the seams stage's start candidate)."""
+    from heatparam.mesh.seams import cut_open, hole_seams
+    from heatparam.mesh.validate import validate_mesh
+    from heatparam.pipeline.seams import _reopened_conformal
+    from heatparam.pipeline.surface import Surface
+
+    surface = Surface.validated(*_load("beetle.off"))[0]
+    Vs, Fs, src = cut_open(surface.V, surface.F, hole_seams(surface.V, surface.F, surface.info.boundary_loops))
+    cut = Surface(Vs, Fs, validate_mesh(Vs, Fs), conformal_method="inverse")
+    disk = tutte.build_disk(Vs, Fs)
+    g, area = energy.surface_gradients(Vs, Fs)
+    reopened, _ = _reopened_conformal(cut, src)
+    return Vs, Fs, disk.loops, g, area, tutte.tutte(Vs, disk)[: len(Vs)], reopened
+
+
+@pytest.mark.parametrize("offered", ["reopened", "no lower energy", None])
+def test_coarse_to_fine_restarts_from_another_start_after_a_stalled_coarse_level(beetle_cut_from_tutte, offered):
+    """The coarse level from beetle's cut-open Tutte layout stalls far from its minimum: the levels start again,
+    once, from the layout ``restart`` offers where its energy is lower (the reopened conformal layout: its coarse
+    level serves); when it offers none, or one no lower in energy (Tutte's again), the fine polish starts from the
+    first start and the report says why."""
+    V, F, loops, g, area, x0, reopened = beetle_cut_from_tutte
+    assert reopened is not None and start.bijectivity(reopened, F, g) == (0, 0)
+    offer = {"reopened": reopened, "no lower energy": x0.copy(), None: None}[offered]
+    calls = []
+
+    def restart():
+        calls.append(1)
+        return offer, {"layout": "offered"}
+
+    ml = multilevel.Multilevel(V, F, x0, loops, g, area, multilevel.LevelSettings(min_vertices=1), restart=restart)
+    y = ml.coarse_start()
+    rep = ml.report["restart"]
+    assert calls == [1] and "coarse polish stopped" in rep["dropped"] and rep["layout"] == "offered", ml.report
+    if offered == "reopened":
+        assert rep["used"] and rep["energy"] < rep["start_energy"] and ml.report["used"] and ml.x is reopened
+        assert y is not None and start.bijectivity(y, F, g) == (0, 0)
+    else:
+        assert not rep["used"] and not ml.report["used"] and y is None and ml.x is x0
+
+
 def test_coarse_to_fine_untangles_what_the_mean_value_repair_cannot(monkeypatch):
     """halftunnel.off from its Tutte start with a 250-vertex coarse level: 3 prolongated faces beside the locked,
     non-convex border stay flipped after both mean value repairs; the untangler unflips them."""

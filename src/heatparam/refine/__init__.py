@@ -147,8 +147,10 @@ class Refinement:
             settings = LevelSettings(min_vertices=params.multilevel, max_iters=params.max_iters, tol=params.tol,
                                      backend=params.solver, pause_excess=pausing.excess, pause_coarse=pausing.coarse,
                                      park=pausing.park, pause_fine_start=pausing.fine_start)
+            # a start whose coarse level stalls is tried again from the fallback's, unless it is that or Tutte
+            restart = None if start["layout"] in ("conformal_smoothed", "tutte") else fallback.start
             self.polish, self._report["multilevel"] = multilevel_polish(V, F, x, disk.loops, g, area, settings,
-                                                                        progress=progress)
+                                                                        progress=progress, restart=restart)
         self.seconds = time.perf_counter() - t0
 
     @property

@@ -12,6 +12,7 @@ the seams stage compares maps, a coarse level may pause; its prolongation is the
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -319,7 +320,7 @@ class CoarseLevel:
                                 "reason": ("the coarse polish stopped where its boundaries touch (its scaffold "
                                            "failed): its prolongation would fold between them")}
         if not paused and not cinfo["converged"] and e1 - 1.0 > COARSE_MIN_GAIN * (self.e0 - 1.0):
-            return None, out | {"used": False, "seconds": seconds,
+            return None, out | {"used": False, "seconds": seconds, "stalled": True,
                                 "reason": (f"the coarse polish stopped ({cinfo['stop']}) at energy {e1:.4g} from "
                                            f"{self.e0:.4g}: its prolongation would be a poor start")}
         y = prolongate(self.x, self.x[self.ids], self.T, xc)
@@ -362,12 +363,19 @@ class CoarseLevel:
 class Multilevel:
     """:func:`multilevel_polish` of (V (n,3), F (m,3)) from the bijective layout ``x`` (n,2): :meth:`coarse_start`
     (a :class:`CoarseLevel`, when it can help), :meth:`fine_polish` from there, and :meth:`refined` to finish a
-    coarse level that paused. ``report`` is the report's ``multilevel`` part, updated in place."""
+    coarse level that paused. ``report`` is the report's ``multilevel`` part, updated in place.
+
+    restart : () -> (another bijective start (n,2) or None, its report), asked for once, when the coarse level
+        stalled far from its minimum (``COARSE_MIN_GAIN``): such a start is squeezed where a repair made its
+        flipped faces barely positive, and the fine polish from it crawls too (a noisy CAD part's repaired
+        conformal layout: 28 fine iterations). The levels then start again from the other start if its energy is
+        lower."""
 
     def __init__(self, V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.ndarray], g: np.ndarray,
-                 area: np.ndarray, settings: LevelSettings, *, progress=None, guards: np.ndarray | None = None):
+                 area: np.ndarray, settings: LevelSettings, *, progress=None, guards: np.ndarray | None = None,
+                 restart: Callable[[], tuple[np.ndarray | None, dict]] | None = None):
         self.V, self.F, self.x, self.loops, self.g, self.area = V, F, x, loops, g, area
-        self.settings, self.progress, self.guards = settings, progress, guards
+        self.settings, self.progress, self.guards, self.restart = settings, progress, guards, restart
         self.coarse: CoarseLevel | None = None
         self.near_isometric = False  # the start is within MULTILEVEL_MIN_EXCESS of an isometry
         self.prepared = None
@@ -385,13 +393,39 @@ class Multilevel:
             return None
         if not s.coarse and s.pause_excess == 0:  # the fine level's Hessian analysed meanwhile, on a thread
             self.prepared = prepare_hessian(self.F, len(self.V), s.backend)
-        self.coarse = CoarseLevel(self.V, self.F, self.x, self.loops, self.g, s, progress=self.progress,
+        y = self._level(s)
+        return self._restarted(s) if y is None else y
+
+    def _level(self, settings: LevelSettings) -> np.ndarray | None:
+        """A coarse level of ``x`` started (:meth:`CoarseLevel.start`): the fine start, or None; reported."""
+        self.coarse = CoarseLevel(self.V, self.F, self.x, self.loops, self.g, settings, progress=self.progress,
                                   guards=self.guards)
         try:
             y, rep = self.coarse.start()
         except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:  # only a faster start: never fatal
             self.coarse, y, rep = None, None, {"used": False, "reason": f"coarse level failed: {exc}"}
         self.report.update(rep)
+        return y
+
+    def _restarted(self, settings: LevelSettings) -> np.ndarray | None:
+        """After a coarse level that stalled far from its minimum: the levels from ``restart``'s start, once (the
+        fine start or None; ``x`` becomes that start when there is one). The report keeps the dropped level's
+        reason and seconds under ``restart``."""
+        if self.restart is None or not self.report.get("stalled"):
+            return None
+        x, rep = self.restart()
+        self.restart = None
+        rep = {"dropped": self.report["reason"], "dropped_seconds": self.report.get("seconds")} | rep
+        if x is not None:
+            rep["energy"] = normalized_energy(x, self.F, self.g, self.area)
+            rep["start_energy"] = normalized_energy(self.x, self.F, self.g, self.area)
+        if x is None or not rep["energy"] < rep["start_energy"]:  # a start as good as this one stalls as well
+            self.report["restart"] = rep | {"used": False}
+            return None
+        self.x = x
+        self.report.clear()
+        y = self._level(settings)
+        self.report["restart"] = rep | {"used": True}
         return y
 
     def fine_settings(self, y: np.ndarray | None) -> PolishSettings:
@@ -434,21 +468,24 @@ class Multilevel:
         y, again = self.coarse.finish()
         self.report.clear()
         self.report.update(again, provisional=counts)
+        if y is None:  # no more pauses: the levels of another start are finished at once
+            y = self._restarted(replace(self.settings, pause_excess=0.0, pause_coarse=0.0))
         return self.fine_polish(y)
 
 
 def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.ndarray], g: np.ndarray,
                       area: np.ndarray, settings: LevelSettings, *, progress=None, guards: np.ndarray | None = None,
-                      label: str = "Newton") -> tuple[Polish | Levels, dict]:
+                      label: str = "Newton", restart: Callable[[], tuple[np.ndarray | None, dict]] | None = None
+                      ) -> tuple[Polish | Levels, dict]:
     """Polish (V (n,3), F (m,3)) from the bijective layout ``x`` (n,2), coarse-to-fine when the mesh has at least
     ``settings.min_vertices`` vertices and ``x`` is more than ``MULTILEVEL_MIN_EXCESS`` above an isometry
     (:class:`Multilevel`), until the polish stops or pauses (``settings.pause_excess``; ``pause_fine_start``: before
     the fine level's first iteration, when a coarse level gave its start). g (m,3,2), area (m,): the
     rest triangles' hat gradients and areas; loops: boundary loops, outer first; guards (k,3): triangles kept
-    positive. Returns (the fine level's :class:`newton.Polish`, or :class:`Levels` when its coarse level paused,
-    with its layout ``x`` and ``report()``; the coarse-to-fine report, updated in place when a paused coarse level
-    is finished)."""
-    ml = Multilevel(V, F, x, loops, g, area, settings, progress=progress, guards=guards)
+    positive; restart: another start for the levels when the coarse level stalls (:class:`Multilevel`). Returns
+    (the fine level's :class:`newton.Polish`, or :class:`Levels` when its coarse level paused, with its layout
+    ``x`` and ``report()``; the coarse-to-fine report, updated in place when a paused coarse level is finished)."""
+    ml = Multilevel(V, F, x, loops, g, area, settings, progress=progress, guards=guards, restart=restart)
     run: Polish | Levels = ml.fine_polish(ml.coarse_start())
     if ml.coarse is not None and ml.coarse.paused:
         run = Levels(run, ml)
