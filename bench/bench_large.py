@@ -288,6 +288,14 @@ def run_family(spec: str, slim_iters: int, jsonl: str | None) -> None:
         print("\n" + family_summary(rows))
 
 
+def warm_compiled() -> None:
+    """Compile numba's loops into its on-disk cache once, untimed: the first run in a fresh checkout or install
+    compiles them (~12 s, measured on held-out seed 1000: 34 s against 22 s), which every later run loads."""
+    code = ("import heatparam.atlas.grow, heatparam.atlas.overlap, heatparam.mesh.nest\n"
+            "from heatparam.compiled import warm_all\nwarm_all()")
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", nargs="*", default=None, choices=NAMES)
@@ -296,6 +304,7 @@ def main() -> None:
     ap.add_argument("--jsonl", default=None, help="--family: append each part's measurements to this file")
     args = ap.parse_args()
     print(f"machine: {machine()}\n")
+    warm_compiled()
     if args.family:
         run_family(args.family, args.slim_iters, args.jsonl)
         return
