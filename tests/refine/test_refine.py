@@ -1107,3 +1107,41 @@ def test_tutte_when_the_smoothed_layouts_fold_too():
     assert asked == [start.SMOOTHING_STEPS] and rep["layout"] == "tutte"
     assert not rep["conformal_smoothed"]["repair"]["repaired"]
     assert start.bijectivity(x, F, g) == (0, 0)
+
+
+@pytest.mark.parametrize("case", ["conformal", "conformal_smoothed", "tutte"])
+def test_the_levels_may_restart_from_the_fallback_unless_they_start_there_or_at_tutte(monkeypatch, case):
+    """The refinement hands its fallback start to the levels as their restart (``Multilevel(restart=)``), except
+    when the start is that fallback's layout (the spiked cylinder: no other candidate is bijective) or Tutte's (its
+    fallback folded too)."""
+    from conftest import spiked_cylinder
+
+    if case == "conformal":
+        s = datasets.curved_cap_with_holes(sphere_radius=1.2, h=0.05)
+        V, F = s.V, s.F
+    else:
+        V, F = spiked_cylinder()
+    g, area = energy.surface_gradients(V, F)
+    fallback = None  # the refinement's own: the smoothed conformal layout, repaired
+    if case != "conformal_smoothed":
+        layout = conformal_layout(V, F)  # on the spiked cylinder it folds beyond repair
+        fallback = start.SmoothedStart(lambda steps: layout, lambda x: (None, {"repaired": False}), F, g)
+    handed = {}
+
+    class Handed(Exception):
+        pass
+
+    def recorder(*args, restart=None, **kwargs):
+        handed["restart"] = restart
+        raise Handed
+
+    chosen = refine.choose_start
+    monkeypatch.setattr(refine, "choose_start", lambda *a: handed.setdefault("start", chosen(*a)))
+    monkeypatch.setattr(refine, "multilevel_polish", recorder)
+    with pytest.raises(Handed):
+        refine.Refinement(V, F, None, fallback=fallback)
+    assert handed["start"][1]["layout"] == case
+    if case == "conformal":
+        assert handed["restart"] == fallback.start
+    else:
+        assert handed["restart"] is None
