@@ -423,9 +423,10 @@ class Multilevel:
             self.report["restart"] = rep | {"used": False}
             return None
         self.x = x
+        kept = {k: self.report[k] for k in ("provisional",) if k in self.report}  # iterations before a pause
         self.report.clear()
         y = self._level(settings)
-        self.report["restart"] = rep | {"used": True}
+        self.report.update(kept, restart=rep | {"used": True})
         return y
 
     def fine_settings(self, y: np.ndarray | None) -> PolishSettings:
