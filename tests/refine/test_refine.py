@@ -1101,8 +1101,7 @@ def test_tutte_when_the_smoothed_layouts_fold_too():
     disk = tutte.build_disk(V, F)
     folded = conformal_layout(V, F)
     asked = []
-    fallback = start.SmoothedStart(lambda steps: asked.append(steps) or folded,
-                                   lambda x: start.repaired_layout(x, F, g, area, disk.loops), F, g)
+    fallback = start.SmoothedStart(lambda steps: asked.append(steps) or folded, F, g, area, disk.loops)
     x, rep = start.choose_start(V, F, None, disk, g, area, None, None, "auto", fallback=fallback)
     assert asked == [start.SMOOTHING_STEPS] and rep["layout"] == "tutte"
     assert not rep["conformal_smoothed"]["repair"]["repaired"]
@@ -1125,7 +1124,8 @@ def test_the_levels_may_restart_from_the_fallback_unless_they_start_there_or_at_
     fallback = None  # the refinement's own: the smoothed conformal layout, repaired
     if case != "conformal_smoothed":
         layout = conformal_layout(V, F)  # on the spiked cylinder it folds beyond repair
-        fallback = start.SmoothedStart(lambda steps: layout, lambda x: (None, {"repaired": False}), F, g)
+        fallback = start.SmoothedStart(lambda steps: layout, F, g, area, boundary_loops(F),
+                                       repair=lambda x: (None, {"repaired": False}))
     handed = {}
 
     class Handed(Exception):

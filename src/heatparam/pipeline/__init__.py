@@ -19,7 +19,6 @@ Each stage returns its value and its part of the report; the report is assembled
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -38,7 +37,7 @@ from heatparam.pipeline.shortcuts import heat_stage_optional, start_checks
 from heatparam.pipeline.surface import Surface
 from heatparam.progress import Progress
 from heatparam.refine import NO_PAUSE, Pausing, Refinement, RefineParams, polish_bytes
-from heatparam.refine.start import SmoothedStart, repaired_layout
+from heatparam.refine.start import SmoothedStart
 
 #: Peak memory of the pipeline without the refinement, per vertex (landmark path): ``refine none`` peaked at
 #: 3.5-3.9 KB per vertex on camelhead↑727k and 4.4-5.9 KB on camelhead↑182k, interpreter and libraries included
@@ -219,10 +218,7 @@ class _Flattening:
         """The refinement's start before Tutte's: the conformal layout of the smoothed surface, made bijective by
         ``repair`` (default ``refine.start.repaired_layout``)."""
         s = self.surface
-        g, area = s.gradients()
-        repair = self.repair or functools.partial(repaired_layout, F=s.F, g=g, area=area,
-                                                  loops=s.info.boundary_loops)
-        return SmoothedStart(s.smoothed_conformal, repair, s.F, g)
+        return SmoothedStart(s.smoothed_conformal, s.F, *s.gradients(), s.info.boundary_loops, repair=self.repair)
 
     def refined(self, uv: np.ndarray | None, check, heat: _Heat) -> Flat:
         """The refinement from the MDS layout ``uv`` (None: the heat stage was skipped), as a Flat."""

@@ -32,7 +32,7 @@ from heatparam.layout.tutte import build_disk
 from heatparam.options import MULTILEVEL_MIN_VERTICES
 from heatparam.refine.energy import det, jacobians, surface_gradients
 from heatparam.refine.multilevel import LevelSettings, multilevel_polish, run_polish
-from heatparam.refine.start import LscmStart, SmoothedStart, choose_start, repaired_layout
+from heatparam.refine.start import LscmStart, SmoothedStart, choose_start
 
 #: Peak memory of the refinement per surface face, above the rest of the pipeline: the peak RSS of the default run
 #: minus that of ``refine none`` measured 2.4 / 1.9 / 2.35 KB per face on camelhead↑45k / 182k / 727k
@@ -138,8 +138,7 @@ class Refinement:
         g, area = surface if surface is not None else surface_gradients(V, F)
         self.g = g
         if fallback is None:
-            fallback = SmoothedStart(functools.partial(smoothed_conformal_layout, V, F),
-                                     functools.partial(repaired_layout, F=F, g=g, area=area, loops=disk.loops), F, g)
+            fallback = SmoothedStart(functools.partial(smoothed_conformal_layout, V, F), F, g, area, disk.loops)
         x, start = choose_start(V, F, uv, disk, g, area, lscm, conformal, params.solver, extra_starts, fallback)
         self._report: dict = {"method": "sd", "holes": len(disk.holes), "start": start}
         self.x_start = x

@@ -7,6 +7,7 @@ isometry). A layout with a few flipped faces is repaired first (:func:`repaired_
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -224,14 +225,17 @@ class SmoothedStart:
     (``layout.conformal.smoothed_conformal_layout``), if it is bijective as it is or once ``repair``ed.
 
     layout : steps -> (n,2) layout (``pipeline.Surface.smoothed_conformal``), computed only when asked.
-    repair : layout -> (bijective layout or None, report): :func:`repaired_layout` for a surface, the seams stage's
-        reopening of crossing slits for a mesh cut open.
-    F (m,3), g (m,3,2): the faces and their rest triangles' hat gradients, to judge bijectivity.
+    F (m,3), g (m,3,2), area (m,), loops : the faces, their rest triangles' hat gradients and areas, the boundary
+        loops (outer first): to judge bijectivity and to repair.
+    repair : layout -> (bijective layout or None, report); None: :func:`repaired_layout`, as for the other
+        candidates (the seams stage passes its reopening of crossing slits for a mesh cut open).
     """
 
-    def __init__(self, layout: Callable[[int], np.ndarray],
-                 repair: Callable[[np.ndarray], tuple[np.ndarray | None, dict]], F: np.ndarray, g: np.ndarray):
-        self.layout, self.repair, self.F, self.g = layout, repair, F, g
+    def __init__(self, layout: Callable[[int], np.ndarray], F: np.ndarray, g: np.ndarray, area: np.ndarray,
+                 loops: list[np.ndarray],
+                 repair: Callable[[np.ndarray], tuple[np.ndarray | None, dict]] | None = None):
+        self.layout, self.F, self.g = layout, F, g
+        self.repair = repair or functools.partial(repaired_layout, F=F, g=g, area=area, loops=loops)
 
     def start(self) -> tuple[np.ndarray | None, dict]:
         """(bijective layout (n,2) or None, the report's ``start.conformal_smoothed`` part)."""
