@@ -19,9 +19,13 @@
    tests → 21k; docs/history.md §21); where the stretch is not one arc of both borders (a chart's own seam ends on it:
    the union would have a hole) the union is flattened whole and its disk test decides. Every chart keeps the
    layout its last test checked (``Segmentation.corner_uv``).
+4. Straightening: each seam between two charts is replaced by the shortest edge path between its ends through
+   the two charts, where both still flatten bijectively within the bound (their kept faces where they were, the
+   faces that change chart laid out as LSCM extensions of them): the cone's borders wander (beetle's seams between
+   charts were 1.6× their shortest paths).
 
 A chart is a set of faces plus the half-edges glued inside it (``Segmentation.glued``). Step 1 is ``atlas.grow``,
-step 2 ``atlas.flatten``, step 3 ``atlas.merge`` (its stretches: ``atlas.stretches``).
+step 2 ``atlas.flatten``, step 3 ``atlas.merge`` (its stretches: ``atlas.stretches``), step 4 ``atlas.straighten``.
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ from heatparam.atlas.chart_topology import Topology, glue_inside
 from heatparam.atlas.flatten import flatten_charts
 from heatparam.atlas.grow import DEFAULT_CONE, grow
 from heatparam.atlas.merge import Layouts, merge
+from heatparam.atlas.straighten import straighten
 
 __all__ = ["PROXY_SLACK", "SPLIT_SEEDS", "Segmentation", "proxy_bound", "segment"]
 
@@ -114,5 +119,8 @@ def segment(topo: Topology, max_distortion: float, max_charts: int | None = None
         stats["capped"] = True
     stats["merge_seconds"] = round(time.perf_counter() - t, 3)
     stats["merges"], stats["merge_tests"] = nmerge, ntest
+    t = time.perf_counter()
+    stats["straightening"] = straighten(topo, chart, glued, np.inf if stats["capped"] else bound, layouts)
+    stats["straightening"]["seconds"] = round(time.perf_counter() - t, 3)
     return Segmentation(chart=chart, glued=glued, stats=stats, corner_uv=layouts.uv,
                         checked=layouts.checked(), iso=layouts.iso())

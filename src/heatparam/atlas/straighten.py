@@ -1,0 +1,286 @@
+"""Straightening the seams between charts: each seam replaced by the shortest path between its ends through the
+two charts it divides, where both charts' flattening stays bijective and within the bound.
+
+The segmentation's step 4 (``atlas.segment``). A region's border follows where the normals turn (the growing's
+cone), which on a smooth surface is a wandering line: on beetle the seams between charts were 1.6× their shortest
+paths. A seam here is a chain of edges between two charts whose inner vertices touch those two charts only; its
+ends (where a third chart, the mesh border or an inner seam meets it) stay where they are. The shortest edge path
+between the ends, through vertices inside the two charts or on the seam itself (Dijkstra on the mesh's edges),
+divides their union in two again; the new pair is kept when both are disks whose quick flattening (LSCM,
+``atlas.flatten``) is bijective and within the bound, as every chart of the segmentation is. A seam along a sharp
+crease (``Topology.crease``: a CAD part's feature line) is left where it is, and so is a path shorter by less than
+the seam's mean edge: the same seam at the mesh's resolution.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from heatparam.atlas.chart_topology import Topology
+from heatparam.atlas.flatten import flatten_charts
+from heatparam.atlas.grow import _heap_pop, _heap_push
+from heatparam.atlas.merge import Layouts
+from heatparam.compiled import compiled, warmup
+
+__all__ = ["straighten"]
+
+
+@dataclass
+class _Seam:
+    """A seam between charts a < b: its half-edges ``h`` (one side, in chart a or b), inner vertices, ends s, t and
+    length."""
+
+    a: int
+    b: int
+    h: np.ndarray
+    inner: np.ndarray
+    s: int
+    t: int
+    length: float
+
+
+def straighten(topo: Topology, chart: np.ndarray, glued: np.ndarray, bound: float, layouts: Layouts) -> dict:
+    """:class:`Straightening` run to its end; ``chart`` (m,), ``glued`` (3m,) and ``layouts`` updated in place.
+    Returns its statistics (seams straightened, tried; seam length before and after)."""
+    return Straightening(topo, chart, glued, layouts, bound).run()
+
+
+class Straightening:
+    """Rounds of seam straightenings, each chart in one per round (a straightening moves both of its charts'
+    borders); a seam is tried once (its charts and ends)."""
+
+    def __init__(self, topo: Topology, chart: np.ndarray, glued: np.ndarray, layouts: Layouts, bound: float):
+        self.topo, self.chart, self.glued, self.layouts, self.bound = topo, chart, glued, layouts, bound
+        n = len(topo.V)
+        ha, hb = topo.ends()
+        self.ha, self.hb = ha, hb
+        G = sp.csr_matrix((topo.hlen, (ha, hb)), shape=(n, n))
+        G = G.maximum(G.T).tocsr()  # border edges have one half-edge: both directions
+        self.indptr, self.indices, self.weights = (G.indptr.astype(np.int64), G.indices.astype(np.int64),
+                                                   G.data.astype(np.float64))
+        self.tried: set = set()
+        self.stats = {"straightened": 0, "tried": 0}
+
+    def run(self) -> dict:
+        """Rounds until no seam is left to try; returns the statistics."""
+        before = self._seam_length()
+        while True:
+            picked = self._pick()
+            if not picked:
+                break
+            self._test(picked)
+        self.stats["seam_length"] = [round(before, 6), round(self._seam_length(), 6)]
+        return self.stats
+
+    def _seam_length(self) -> float:
+        h = np.flatnonzero((self.topo.opp >= 0) & ~self.glued)
+        return float(self.topo.hlen[h].sum() / 2)
+
+    def _pick(self) -> list[tuple[_Seam, np.ndarray]]:
+        """A round's seams with their shorter paths, longest excess first, each chart in one at most."""
+        self._vertices()
+        cand = []
+        for seam in self._seams():
+            if self._key(seam) in self.tried:
+                continue
+            path, dist = self._path(seam)
+            if path is not None and seam.length - dist > seam.length / len(seam.h):
+                cand.append((seam.length - dist, seam, path))
+            else:
+                self.tried.add(self._key(seam))
+        cand.sort(key=lambda c: -c[0])
+        touched: set = set()
+        picked = []
+        for _, seam, path in cand:
+            if seam.a not in touched and seam.b not in touched:
+                self.tried.add(self._key(seam))
+                picked.append((seam, path))
+                touched.update((seam.a, seam.b))
+        return picked
+
+    @staticmethod
+    def _key(seam: _Seam) -> tuple:
+        return seam.a, seam.b, seam.s, seam.t, len(seam.h)
+
+    def _vertices(self) -> None:
+        """Per vertex, for this round: ``owner`` (the chart all its faces are in, with no cut edge or mesh border at
+        it; else -1) and ``interior`` (inside a seam: two cut edges meet there, its faces lie in two charts)."""
+        topo, opp = self.topo, self.topo.opp
+        n = len(topo.V)
+        cut = (opp < 0) | ~self.glued  # half-edges on a seam or the mesh border
+        one = cut & ((opp < 0) | (np.arange(len(opp)) < opp))  # each cut edge once
+        deg = np.bincount(np.concatenate([self.ha[one], self.hb[one]]), minlength=n)
+        fv, fc = topo.F.ravel(), np.repeat(self.chart, 3)
+        lo, hi = np.full(n, np.iinfo(np.int64).max), np.full(n, -1)
+        np.minimum.at(lo, fv, fc)
+        np.maximum.at(hi, fv, fc)
+        third = np.zeros(n, dtype=bool)
+        np.logical_or.at(third, fv, (fc != lo[fv]) & (fc != hi[fv]))
+        onb = np.zeros(n, dtype=bool)
+        onb[self.ha[opp < 0]] = True
+        self.owner = np.where((lo == hi) & (deg == 0), lo, -1)
+        self.interior = (deg == 2) & (lo != hi) & ~third & ~onb
+
+    def _seams(self) -> list[_Seam]:
+        """The seams between two charts (open chains; a closed one has no ends to keep)."""
+        topo, chart, opp = self.topo, self.chart, self.topo.opp
+        hh = np.arange(len(opp))
+        between = (opp > hh) & (chart[hh // 3] != chart[np.maximum(opp, 0) // 3])
+        h = np.flatnonzero(between)
+        if not len(h):
+            return []
+        # seam edges joined at interior vertices: connected components over the edges
+        ev = np.concatenate([self.ha[h], self.hb[h]])
+        ei = np.tile(np.arange(len(h)), 2)
+        keep = self.interior[ev]
+        o = np.argsort(ev[keep], kind="stable")
+        pairs = ei[keep][o].reshape(-1, 2)
+        E = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(h), len(h)))
+        nc, lab = connected_components(E, directed=False)
+        order = np.argsort(lab, kind="stable")
+        starts = np.searchsorted(lab[order], np.arange(nc + 1))
+        seams = []
+        for c in range(nc):
+            hc = h[order[starts[c]:starts[c + 1]]]
+            vs = np.concatenate([self.ha[hc], self.hb[hc]])
+            ends = np.flatnonzero(np.bincount(vs) == 1)
+            if len(ends) != 2 or topo.crease[hc].any():
+                continue  # a closed seam, or one along a crease
+            a, b = sorted((int(chart[hc[0] // 3]), int(chart[opp[hc[0]] // 3])))
+            seams.append(_Seam(a, b, hc, np.unique(vs[self.interior[vs]]), int(ends[0]), int(ends[1]),
+                               float(topo.hlen[hc].sum())))
+        return seams
+
+    def _path(self, seam: _Seam) -> tuple[np.ndarray | None, float]:
+        """The shortest edge path from the seam's one end to the other through the inside of its two charts and
+        the seam itself, and its length; (None, inf) where none."""
+        allowed = (self.owner == seam.a) | (self.owner == seam.b)
+        allowed[seam.inner] = True
+        allowed[[seam.s, seam.t]] = True
+        path = _shortest_path(self.indptr, self.indices, self.weights, allowed, seam.s, seam.t)
+        if len(path) < 2:
+            return None, np.inf
+        return path, float(np.linalg.norm(self.topo.V[path[1:]] - self.topo.V[path[:-1]], axis=1).sum())
+
+    def _split(self, seam: _Seam, path: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        """The two charts' faces cut apart along ``path`` instead of the seam: (faces of the new a, of the new b,
+        the union's half-edges, which of them are glued), or None when the path does not divide them in two."""
+        topo, opp, chart = self.topo, self.topo.opp, self.chart
+        n = len(topo.V)
+        U = np.flatnonzero((chart == seam.a) | (chart == seam.b))
+        h = (3 * U[:, None] + np.arange(3)).ravel()
+        o = opp[h]
+        inU = o >= 0
+        inU[inU] = (chart[o[inU] // 3] == seam.a) | (chart[o[inU] // 3] == seam.b)
+        on_seam = np.zeros(len(opp), dtype=bool)
+        on_seam[seam.h] = True
+        on_seam[opp[seam.h]] = True
+        pk = np.sort(np.column_stack([path[:-1], path[1:]]), axis=1)
+        pkey = pk[:, 0] * n + pk[:, 1]
+        ek = np.minimum(self.ha[h], self.hb[h]) * n + np.maximum(self.ha[h], self.hb[h])
+        on_path = np.isin(ek, pkey)
+        if on_path.sum() < 2 * (len(path) - 1) or (on_path & ~inU).any():
+            return None  # a path edge outside the two charts (or on the mesh border)
+        join = inU & (self.glued[h] | on_seam[h]) & ~on_path
+        row = np.full(len(chart), -1, dtype=np.int64)
+        row[U] = np.arange(len(U))
+        a_row = np.repeat(np.arange(len(U)), 3)[join]
+        b_row = row[o[join] // 3]
+        G = sp.coo_matrix((np.ones(len(a_row)), (a_row, b_row)), shape=(len(U), len(U)))
+        nc, lab = connected_components(G, directed=False)
+        if nc != 2:
+            return None
+        was_a = chart[U] == seam.a
+        first_is_a = (was_a & (lab == 0)).sum() >= (was_a & (lab == 1)).sum()
+        fa, fb = (U[lab == 0], U[lab == 1]) if first_is_a else (U[lab == 1], U[lab == 0])
+        if len(fa) == (chart == seam.a).sum() and np.array_equal(fa, np.flatnonzero(chart == seam.a)):
+            return None
+        g = np.zeros(len(h), dtype=bool)
+        g[join] = True
+        return fa, fb, h, g
+
+    def _test(self, picked: list[tuple[_Seam, np.ndarray]]) -> None:
+        """Split every picked pair along its path and keep those whose both charts flatten within the bound."""
+        props, charts = [], []
+        glued = self.glued.copy()
+        for seam, path in picked:
+            sp_ = self._split(seam, path)
+            if sp_ is None:
+                continue
+            fa, fb, h, g = sp_
+            glued[h] = g
+            props.append((seam, fa, fb, h, g))
+            charts += [fa, fb]
+        self.stats["tried"] += len(props)
+        if not props:
+            return
+        # the faces that stay in their chart keep its checked layout; the faces that change chart are its extension
+        fixed = np.zeros(len(self.chart), dtype=bool)
+        for seam, fa, fb, _, _ in props:
+            fixed[fa[self.chart[fa] == seam.a]] = True
+            fixed[fb[self.chart[fb] == seam.b]] = True
+        fl = flatten_charts(self.topo, charts, glued, self.bound, pinned=(fixed, self.layouts.uv))
+        ok = fl.ok(self.bound)
+        ids, which = [], []
+        for i, (seam, fa, fb, h, g) in enumerate(props):
+            if ok[2 * i] and ok[2 * i + 1]:
+                self.chart[fa], self.chart[fb] = seam.a, seam.b
+                self.glued[h] = g
+                ids += [seam.a, seam.b]
+                which += [2 * i, 2 * i + 1]
+        if ids:
+            self.layouts.add(ids, charts, fl, which, [True] * len(ids))
+            self.stats["straightened"] += len(ids) // 2
+
+
+@compiled(_heap_push, _heap_pop)
+def _shortest_path(indptr, indices, data, allowed, s, t):  # pragma: no cover - compiled
+    """The vertices of a shortest path from s to t through ``allowed`` vertices (CSR graph, edge lengths ``data``),
+    s first; empty when t cannot be reached."""
+    n = len(indptr) - 1
+    dist = np.full(n, np.inf)
+    prev = np.full(n, -1, dtype=np.int64)
+    heap, key, m = np.empty(1024), np.zeros((1024, 2), dtype=np.int64), 0
+    dist[s] = 0.0
+    heap, key, m = _heap_push(heap, key, m, 0.0, s, 0)
+    while m:
+        d, v, _, m = _heap_pop(heap, key, m)
+        if d > dist[v]:
+            continue
+        if v == t:
+            break
+        for i in range(indptr[v], indptr[v + 1]):
+            w = indices[i]
+            if not allowed[w]:
+                continue
+            nd = d + data[i]
+            if nd < dist[w]:
+                dist[w] = nd
+                prev[w] = v
+                heap, key, m = _heap_push(heap, key, m, nd, w, 0)
+    if not np.isfinite(dist[t]):
+        return np.zeros(0, dtype=np.int64)
+    k = 1
+    v = t
+    while v != s:
+        v = prev[v]
+        k += 1
+    out = np.empty(k, dtype=np.int64)
+    v = t
+    for i in range(k - 1, -1, -1):
+        out[i] = v
+        v = prev[v]
+    return out
+
+
+@warmup
+def _warm() -> None:
+    """The compiled loop runs once on a path of three vertices (:func:`heatparam.compiled.warm_all`)."""
+    indptr = np.array([0, 1, 3, 4], dtype=np.int64)
+    indices = np.array([1, 0, 2, 1], dtype=np.int64)
+    _shortest_path(indptr, indices, np.ones(4), np.ones(3, dtype=bool), 0, 2)
