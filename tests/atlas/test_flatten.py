@@ -141,21 +141,3 @@ def test_triangle_layout_keeps_a_slivers_lengths_and_area():
     a3 = 0.5 * np.linalg.norm(np.cross(V[1] - V[0], V[2] - V[0]))
     e1, e2 = uv[1] - uv[0], uv[2] - uv[0]
     assert np.isclose(0.5 * (e1[0] * e2[1] - e1[1] * e2[0]), a3, rtol=1e-9)
-
-
-def test_pinned_faces_keep_their_uvs_and_the_rest_is_lscm_with_those_pins():
-    """``flatten_charts(pinned=...)``: the corners of the pinned faces stay at the given UVs, and the other faces get
-    the LSCM of the whole chart with those corners pinned (solved over the unpinned faces only: a face with its three
-    corners pinned adds a constant to the energy), neither mirrored nor scaled."""
-    topo, seg, charts = _torus_charts()
-    c = charts[int(np.argmax([len(x) for x in charts]))]
-    fixed = np.zeros(len(topo.F), dtype=bool)
-    fixed[c[: len(c) // 2]] = True
-    corner_uv = 3.0 * seg.corner_uv + 1.0  # any layout of the pinned corners
-    fl = flatten_charts(topo, [c], seg.glued, pinned=(fixed, corner_uv))
-    Vl, Fl, _ = chart_mesh(topo, c, seg.glued)
-    rows = Fl[fixed[c]].ravel()
-    vals = corner_uv[(3 * c[fixed[c], None] + np.arange(3)).ravel()]
-    rows, first = np.unique(rows, return_index=True)
-    np.testing.assert_allclose(fl.uv[fl.Fl[fixed[c]]], corner_uv[3 * c[fixed[c], None] + np.arange(3)], atol=1e-15)
-    np.testing.assert_allclose(fl.uv, lscm(Vl, Fl, rows, vals[first]), atol=1e-9)

@@ -75,38 +75,25 @@ class Flattenings:
 
 
 def flatten_charts(topo: Topology, charts: list[np.ndarray], glued: np.ndarray, bound: float = np.inf,
-                   want: np.ndarray | None = None, pinned: tuple[np.ndarray, np.ndarray] | None = None
-                   ) -> Flattenings:
+                   want: np.ndarray | None = None) -> Flattenings:
     """LSCM (Lévy et al. 2002) of every chart (face arrays, disjoint), welded across ``glued`` inside each chart,
     all in one sparse solve (two pinned vertices per chart), each oriented like the mesh and scaled to its 3D area.
     Boundary crossings are checked only where the chart is a flip-free disk within ``bound``. want (k,) bool: the
-    charts to lay out (default all; the others get their meshes and disk tests only, iso inf). pinned: (fixed (m,)
-    bool per mesh face, corner UVs (3m,2) as ``Segmentation.corner_uv``): the corners of the fixed faces stay at
-    those UVs instead (every chart needs two of them), the rest is the LSCM extension of them, not rescaled."""
+    charts to lay out (default all; the others get their meshes and disk tests only, iso inf)."""
     faces = np.concatenate(charts)
     k = len(charts)
     sizes = np.array([len(c) for c in charts], dtype=np.int64)
     fgroup = np.repeat(np.arange(k), sizes)
     Vl, Fl, vert = chart_mesh(topo, faces, glued, fgroup)
-    pins = None
-    if pinned is not None:  # every corner of a pinned face where the corner UVs have it
-        fixed, corner_uv = pinned
-        rows = Fl[fixed[faces]].ravel()
-        vals = corner_uv[(3 * faces[fixed[faces], None] + np.arange(3)).ravel()]
-        rows, first = np.unique(rows, return_index=True)
-        pins = (rows, vals[first])
-    uv, iso, flips, cross, disk, vgroup = flatten_components(Vl, Fl, fgroup, k, bound, vert, want, pins)
+    uv, iso, flips, cross, disk, vgroup = flatten_components(Vl, Fl, fgroup, k, bound, vert, want)
     return Flattenings(Vl, Fl, vert, uv, vgroup, np.r_[0, np.cumsum(sizes)], iso, flips, cross, disk)
 
 
 def flatten_components(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, k: int, bound: float = np.inf,
-                       vkey: np.ndarray | None = None, want: np.ndarray | None = None,
-                       pins: tuple[np.ndarray, np.ndarray] | None = None):
+                       vkey: np.ndarray | None = None, want: np.ndarray | None = None):
     """:func:`flatten_charts` on a mesh whose components are the k groups ``fgroup`` (m,) of faces: (uv (n,2),
     iso (k,), flips (k,), crossings (k,), disk (k,), vgroup (n,)). vkey (n,): a vertex key independent of the rows'
-    order (the component's vertex), used to choose the pins; want (k,) bool: the groups to lay out (default all);
-    pins: (rows (p,), their UVs (p,2)) instead of two pins per group (the layout is then taken as it comes: neither
-    mirrored nor scaled)."""
+    order (the component's vertex), used to choose the pins; want (k,) bool: the groups to lay out (default all)."""
     n = len(Vl)
     vgroup = np.full(n, -1, dtype=np.int64)
     vgroup[Fl.ravel()] = np.repeat(fgroup, 3)
@@ -120,8 +107,6 @@ def flatten_components(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, k: in
     rev = np.sort(b * n + a)
     q = a * n + b
     bd = rev[np.minimum(np.searchsorted(rev, q), len(rev) - 1)] != q  # boundary half-edges: no twin
-    if pins is not None:
-        return _extended(Vl, Fl, fgroup, disk, want, pins, bound, (a, b, bd, vgroup), k)
     # two pins per chart, far apart and independent of the row order (LSCM's map depends on its pins): the boundary
     # vertex farthest from the one of smallest key, and the one farthest from that
     bv = unique_ints(a[bd])
@@ -134,54 +119,26 @@ def flatten_components(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, k: in
         return uv, iso, flips, cross, disk, vgroup
     sel = solve[fgroup]
     try:
-        uv = _lscm(Vl, Fl[sel], *_two_pins(p0[solve], p1[solve]))
+        uv = _lscm(Vl, Fl[sel], p0[solve], p1[solve])
     except HeatparamError:
         if solve.sum() == 1:
             return uv, iso, flips, cross, disk, vgroup
         for i in np.flatnonzero(solve):  # a degenerate chart spoils the shared solve: solve each on its own
             s_i = fgroup == i
             try:
-                uv_i = _lscm(Vl, Fl[s_i], *_two_pins(p0[i:i + 1], p1[i:i + 1]))
+                uv_i = _lscm(Vl, Fl[s_i], p0[i:i + 1], p1[i:i + 1])
             except HeatparamError:
                 solve[i] = False
                 continue
             uv[vgroup == i] = uv_i[vgroup == i]
+        sel = solve[fgroup]
     _true_area(Vl, Fl, uv, fgroup, vgroup, k)
-    return uv, *_checks(Vl, Fl, uv, fgroup, solve, bound, a, b, bd, vgroup, k), disk, vgroup
-
-
-def _extended(Vl, Fl, fgroup, disk, want, pins, bound, edges, k):
-    """:func:`flatten_components` with the rows ``pins[0]`` fixed at ``pins[1]``; ``edges``: (a, b, bd, vgroup) as
-    there. A face with its three corners pinned adds a constant to LSCM's energy: the solve is over the others."""
-    n = len(Vl)
-    solve = disk & (True if want is None else want)
-    a, b, bd, vgroup = edges
-    uv = np.zeros((n, 2))
-    uv[pins[0]] = pins[1]
-    pinned = np.zeros(n, dtype=bool)
-    pinned[pins[0]] = True
-    free = solve[fgroup] & ~pinned[Fl].all(axis=1)
-    if free.any():
-        used = np.zeros(n, dtype=bool)
-        used[Fl[free].ravel()] = True
-        keep = used[pins[0]]
-        try:
-            uv[used] = _lscm(Vl, Fl[free], pins[0][keep], pins[1][keep])[used]
-        except HeatparamError:
-            solve = np.zeros(k, dtype=bool)
-    return uv, *_checks(Vl, Fl, uv, fgroup, solve, bound, a, b, bd, vgroup, k), disk, vgroup
-
-
-def _checks(Vl, Fl, uv, fgroup, solve, bound, a, b, bd, vgroup, k) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per group: (iso mean (inf where not solved or not finite), flips, crossing border edge pairs (-1 where not
-    checked: only a flip-free group within ``bound`` is))."""
     mean, flips = chart_iso(Vl, Fl, uv, fgroup, k)
     finite = np.bincount(fgroup, weights=~np.isfinite(uv[Fl]).all(axis=(1, 2)), minlength=k) == 0
     iso = np.where(solve & finite, mean, np.inf)
     check = solve & finite & (flips == 0) & (iso <= bound)
-    cross = np.full(k, -1, dtype=np.int64)
     cross[check] = crossings_per_chart(uv, Fl, a, b, bd, vgroup, check, k)
-    return iso, flips, cross
+    return uv, iso, flips, cross, disk, vgroup
 
 
 def _first_per_group(rows: np.ndarray, grp: np.ndarray, key: np.ndarray, k: int) -> np.ndarray:
@@ -206,23 +163,18 @@ def _farthest_per_group(V, rows, grp, src, key, k) -> tuple[np.ndarray, np.ndarr
     return out, dist
 
 
-def _two_pins(p0: np.ndarray, p1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The rows p0 pinned at (0,0) and p1 at (1,0): (rows, UVs) for :func:`_lscm`."""
-    puv = np.zeros((len(p0) + len(p1), 2))
-    puv[len(p0):, 0] = 1.0
-    return np.concatenate([p0, p1]), puv
-
-
-def _lscm(Vl: np.ndarray, Fl: np.ndarray, rows: np.ndarray, vals: np.ndarray) -> np.ndarray:
+def _lscm(Vl: np.ndarray, Fl: np.ndarray, p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
     """LSCM (``igl.lscm``: faster than a PARDISO LSCM on cow's charts, the same map to 5e-12) of the faces ``Fl``
-    with the rows ``rows`` pinned at ``vals``; rows no face uses stay at 0."""
+    with the pins p0 at (0,0) and p1 at (1,0); rows no face uses stay at 0."""
     mark = np.zeros(len(Vl), dtype=bool)
     mark[Fl.ravel()] = True
     used = np.flatnonzero(mark)
     loc = np.full(len(Vl), -1, dtype=np.int64)
     loc[used] = np.arange(len(used))
+    puv = np.zeros((len(p0) + len(p1), 2))
+    puv[len(p0):, 0] = 1.0
     try:
-        res = lscm(Vl[used], loc[Fl], loc[rows], vals)
+        res = lscm(Vl[used], loc[Fl], loc[np.concatenate([p0, p1])], puv)
     except (RuntimeError, ValueError) as exc:
         raise HeatparamError(f"LSCM failed: {exc}") from None
     uv = np.zeros((len(Vl), 2))

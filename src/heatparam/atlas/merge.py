@@ -19,7 +19,7 @@ from heatparam.atlas.stretches import border_stretches, half_path
 from heatparam.mesh.topology import degenerate_faces, unique_inverse
 from heatparam.metrics import true_scale_iso
 
-__all__ = ["Layouts", "RETRY_GROWTH", "merge"]
+__all__ = ["Layouts", "RETRY_GROWTH", "merge", "new_edge_crossings"]
 
 RETRY_GROWTH = 1.25  # a failed merge is tried again once one side has grown by this factor
 
@@ -256,7 +256,7 @@ class Merging:
         h = (3 * faces[:, None] + np.arange(3)).ravel()
         hgroup, hnew = np.repeat(fgroup, 3), np.repeat(new, 3)
         border = ~inner[h]
-        return _new_edge_crossings(self.topo, C, h[border], hgroup[border], hnew[border], k)
+        return new_edge_crossings(self.topo, C, h[border], hgroup[border], hnew[border], k)
 
 
 class _Extensions:
@@ -329,7 +329,7 @@ def _places(group: np.ndarray, vertex: np.ndarray, uv: np.ndarray) -> tuple[np.n
     return ids, o[change]
 
 
-def _new_edge_crossings(topo: Topology, C: np.ndarray, h: np.ndarray, hgroup: np.ndarray, hnew: np.ndarray,
+def new_edge_crossings(topo: Topology, C: np.ndarray, h: np.ndarray, hgroup: np.ndarray, hnew: np.ndarray,
                         k: int) -> np.ndarray:
     """(k,) pairs of crossing border edges per union: its border half-edges ``h`` (union ``hgroup``, ``hnew``: of
     its smaller chart) at the corner UVs ``C`` (3m,2); edges of the larger chart are kept only within the bounding

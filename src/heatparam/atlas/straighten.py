@@ -6,10 +6,11 @@ cone), which on a smooth surface is a wandering line: on beetle the seams betwee
 paths. A seam here is a chain of edges between two charts whose inner vertices touch those two charts only; its
 ends (where a third chart, the mesh border or an inner seam meets it) stay where they are. The shortest edge path
 between the ends, through vertices inside the two charts or on the seam itself (Dijkstra on the mesh's edges),
-divides their union in two again; the new pair is kept when both are disks whose quick flattening (LSCM,
-``atlas.flatten``) is bijective and within the bound, as every chart of the segmentation is. A seam along a sharp
-crease (``Topology.crease``: a CAD part's feature line) is left where it is, and so is a path shorter by less than
-the seam's mean edge: the same seam at the mesh's resolution.
+divides their union in two again; the new pair is kept when both layouts stay bijective and within the bound, as
+every chart of the segmentation is: the faces that keep their chart keep its layout, the faces that change chart
+are laid out as their extension (:class:`_Moves`). A seam along a sharp crease (``Topology.crease``: a CAD part's
+feature line) is left where it is, and so is a path shorter by less than the seam's mean edge: the same seam at
+the mesh's resolution.
 """
 
 from __future__ import annotations
@@ -20,11 +21,13 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from heatparam.atlas.chart_topology import Topology
-from heatparam.atlas.flatten import flatten_charts
+from heatparam.atlas.chart_topology import Topology, chart_mesh
+from heatparam.atlas.flatten import lscm
 from heatparam.atlas.grow import _heap_pop, _heap_push
-from heatparam.atlas.merge import Layouts
+from heatparam.atlas.merge import Layouts, new_edge_crossings
 from heatparam.compiled import compiled, warmup
+from heatparam.mesh.topology import degenerate_faces
+from heatparam.metrics import true_scale_iso
 
 __all__ = ["straighten"]
 
@@ -85,8 +88,8 @@ class Straightening:
         self._vertices()
         cand = []
         for seam in self._seams():
-            if self._key(seam) in self.tried:
-                continue
+            if self._key(seam) in self.tried or not (self.layouts.ok[seam.a] and self.layouts.ok[seam.b]):
+                continue  # tried, or a chart without a checked layout to extend
             path, dist = self._path(seam)
             if path is not None and seam.length - dist > seam.length / len(seam.h):
                 cand.append((seam.length - dist, seam, path))
@@ -205,37 +208,127 @@ class Straightening:
         return fa, fb, h, g
 
     def _test(self, picked: list[tuple[_Seam, np.ndarray]]) -> None:
-        """Split every picked pair along its path and keep those whose both charts flatten within the bound."""
-        props, charts = [], []
+        """Split every picked pair along its path and keep those whose both charts stay bijective and within the
+        bound (:class:`_Moves`); the charts, glued half-edges and layouts of the kept ones updated."""
+        props = []
         glued = self.glued.copy()
         for seam, path in picked:
-            sp_ = self._split(seam, path)
-            if sp_ is None:
-                continue
-            fa, fb, h, g = sp_
-            glued[h] = g
-            props.append((seam, fa, fb, h, g))
-            charts += [fa, fb]
+            split = self._split(seam, path)
+            if split is not None:
+                glued[split[2]] = split[3]
+                props.append((seam, *split))
         self.stats["tried"] += len(props)
         if not props:
             return
-        # the faces that stay in their chart keep its checked layout; the faces that change chart are its extension
-        fixed = np.zeros(len(self.chart), dtype=bool)
-        for seam, fa, fb, _, _ in props:
-            fixed[fa[self.chart[fa] == seam.a]] = True
-            fixed[fb[self.chart[fb] == seam.b]] = True
-        fl = flatten_charts(self.topo, charts, glued, self.bound, pinned=(fixed, self.layouts.uv))
-        ok = fl.ok(self.bound)
-        ids, which = [], []
-        for i, (seam, fa, fb, h, g) in enumerate(props):
-            if ok[2 * i] and ok[2 * i + 1]:
-                self.chart[fa], self.chart[fb] = seam.a, seam.b
-                self.glued[h] = g
-                ids += [seam.a, seam.b]
-                which += [2 * i, 2 * i + 1]
-        if ids:
-            self.layouts.add(ids, charts, fl, which, [True] * len(ids))
-            self.stats["straightened"] += len(ids) // 2
+        moves = _Moves(self.topo, self.chart, glued, self.layouts, props)
+        ok = moves.passed(self.bound).reshape(-1, 2).all(axis=1)
+        for i in np.flatnonzero(ok):
+            seam, fa, fb, h, g = props[i]
+            self.chart[fa], self.chart[fb] = seam.a, seam.b
+            self.glued[h] = g
+        moves.keep(ok)
+        self.stats["straightened"] += int(ok.sum())
+
+
+class _Moves:
+    """The faces that change chart in a round's straightenings, laid out as the extension of the faces that keep
+    their chart (LSCM with the corners they share pinned at the kept faces' UVs: the merges' extension test), and
+    what each new chart is then: group 2 i is the new chart a of proposal i, 2 i + 1 its new chart b. Only the moved
+    faces are solved and only pairs of border edges with a moved face's edge can cross (the kept faces' layout is a
+    part of a bijective one); the union of two disks glued along one arc of both borders is a disk, and a path from
+    border to border through its inside cuts it into two disks (:meth:`Straightening._split` checks there are two),
+    so no disk test is needed."""
+
+    def __init__(self, topo: Topology, chart: np.ndarray, glued: np.ndarray, layouts: Layouts, props: list):
+        self.topo, self.chart, self.glued, self.layouts = topo, chart, glued, layouts
+        self.ids = np.array([c for p in props for c in (p[0].a, p[0].b)], dtype=np.int64)  # the chart of each group
+        self.sides = [f for p in props for f in (p[1], p[2])]  # the faces of each group
+        moved = [f[chart[f] != c] for f, c in zip(self.sides, self.ids, strict=True)]
+        self.qf = np.concatenate(moved)
+        self.grp = np.repeat(np.arange(len(moved)), [len(f) for f in moved])
+        self.Vl, self.Fl, _ = chart_mesh(topo, self.qf, glued, self.grp)
+        self.uv = self._extension()
+
+    def _extension(self) -> np.ndarray | None:
+        """(rows, 2) the moved faces' layout, or None where the shared solve failed."""
+        topo, qf = self.topo, self.qf
+        m = len(topo.F)
+        mask = np.zeros(m, dtype=bool)
+        mask[qf] = True
+        hq = (3 * qf[:, None] + np.arange(3)).ravel()
+        o = topo.opp[hq]
+        shared = self.glued[hq] & (o >= 0)  # glued to a face of the same new chart that keeps its chart
+        shared[shared] = ~mask[o[shared] // 3]
+        pos = np.repeat(np.arange(len(qf)), 3)[shared]
+        kq, hp = hq[shared] % 3, o[shared]
+        fp, jp = hp // 3, hp % 3
+        # corner kq of the moved face is corner jp + 1 of its neighbour, corner kq + 1 is corner jp
+        rows = np.concatenate([self.Fl[pos, kq], self.Fl[pos, (kq + 1) % 3]])
+        vals = np.concatenate([self.layouts.uv[3 * fp + (jp + 1) % 3], self.layouts.uv[3 * fp + jp]])
+        rows, first = np.unique(rows, return_index=True)
+        try:
+            uv = lscm(self.Vl, self.Fl, rows, vals[first])
+        except (RuntimeError, ValueError):
+            return None
+        return uv if np.isfinite(uv).all() else None
+
+    def passed(self, bound: float) -> np.ndarray:
+        """(groups,) bool: the new chart's moved faces do not flip, its area-weighted iso mean is within ``bound``
+        and no two of its border edges cross."""
+        k = len(self.ids)
+        if self.uv is None:
+            return np.zeros(k, dtype=bool)
+        lay, grp = self.layouts, self.grp
+        iso, area, sa = true_scale_iso(self.Vl, self.Fl, self.uv)
+        flips = np.bincount(grp, weights=~np.isfinite(iso) & ((sa <= 0) | ~degenerate_faces(self.Vl, self.Fl)),
+                            minlength=k)
+        self.isum = np.bincount(grp, weights=np.where(np.isfinite(iso), iso, 0.0) * area, minlength=k)
+        self.asum = np.bincount(grp, weights=area, minlength=k)
+        # what the moved faces took from the chart they left (group 2 i's faces left chart b, 2 i + 1's chart a)
+        old, old_area = self._old_iso()
+        other = grp ^ 1
+        self.isum_out = np.bincount(other, weights=np.where(np.isfinite(old), old, 0.0) * old_area, minlength=k)
+        self.asum_out = np.bincount(other, weights=old_area, minlength=k)
+        isum0 = np.array([lay.isum[c] for c in self.ids])
+        area0 = np.array([lay.area[c] for c in self.ids])
+        mean = (isum0 - self.isum_out + self.isum) / np.maximum(area0 - self.asum_out + self.asum, 1e-300)
+        ok = (flips == 0) & (mean <= bound)
+        gained = ok & (np.bincount(grp, minlength=k) > 0)  # a chart that only gave faces away: no new edge
+        if gained.any():
+            ok[gained] = self._crossings(np.flatnonzero(gained)) == 0
+        return ok
+
+    def _old_iso(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per moved face: its iso and area in the layout of the chart it leaves."""
+        qf = self.qf
+        corners = self.layouts.uv[(3 * qf[:, None] + np.arange(3)).ravel()]
+        iso, area, _ = true_scale_iso(self.topo.V, self.topo.F[qf], corners, np.arange(3 * len(qf)).reshape(-1, 3))
+        return iso, area
+
+    def _crossings(self, which: np.ndarray) -> np.ndarray:
+        """Crossing pairs of border edges, with a moved face's edge among them, of the new charts ``which``."""
+        C = self.layouts.uv.copy()
+        C[(3 * self.qf[:, None] + np.arange(3)).ravel()] = self.uv[self.Fl].reshape(-1, 2)
+        faces = np.concatenate([self.sides[i] for i in which])
+        fgroup = np.repeat(np.arange(len(which)), [len(self.sides[i]) for i in which])
+        h = (3 * faces[:, None] + np.arange(3)).ravel()
+        hgroup = np.repeat(fgroup, 3)
+        moved = np.zeros(len(self.topo.F), dtype=bool)
+        moved[self.qf] = True
+        border = ~self.glued[h]
+        return new_edge_crossings(self.topo, C, h[border], hgroup[border], np.repeat(moved[faces], 3)[border],
+                                  len(which))
+
+    def keep(self, ok: np.ndarray) -> None:
+        """The layouts of the proposals ``ok`` (per proposal) kept: the moved faces' corners, the new sums."""
+        lay = self.layouts
+        for i in np.flatnonzero(ok):
+            for g in (2 * i, 2 * i + 1):
+                s = self.grp == g
+                lay.uv[(3 * self.qf[s, None] + np.arange(3)).ravel()] = self.uv[self.Fl[s]].reshape(-1, 2)
+                c = int(self.ids[g])
+                lay.isum[c] += float(self.isum[g] - self.isum_out[g])
+                lay.area[c] += float(self.asum[g] - self.asum_out[g])
 
 
 @compiled(_heap_push, _heap_pop)
