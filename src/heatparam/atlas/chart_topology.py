@@ -24,7 +24,7 @@ CONE_DEFECT = 0.3  # radians: vertices with a larger |angle defect| end a glued 
 class Topology:
     """Per-component adjacency: V (n,3), F (m,3), opp (3m,) opposite half-edge or -1, normals (m,3),
     areas (m,), crease (3m,) bool, defect (n,) angle defect (2pi - angle sum inside, pi - sum on the border),
-    hlen (3m,) half-edge lengths."""
+    hlen (3m,) half-edge lengths, degenerate (m,) bool zero-area faces (``mesh.topology.degenerate_faces``)."""
 
     V: np.ndarray
     F: np.ndarray
@@ -34,6 +34,7 @@ class Topology:
     crease: np.ndarray
     defect: np.ndarray
     hlen: np.ndarray
+    degenerate: np.ndarray
 
     def ends(self) -> tuple[np.ndarray, np.ndarray]:
         """(3m,) start and end vertex of every half-edge ``3 f + j`` (F[f, j] → F[f, (j+1) % 3]), made once."""
@@ -100,7 +101,7 @@ class Topology:
         onb = np.zeros(len(V), dtype=bool)
         onb[a[~ok]] = True
         defect = np.where(onb, np.pi, 2 * np.pi) - asum
-        return cls(V, F, opp, normals, 0.5 * area2, crease, defect, hlen)
+        return cls(V, F, opp, normals, 0.5 * area2, crease, defect, hlen, degenerate)
 
 
 def _borrowed_normals(normals: np.ndarray, degenerate: np.ndarray, opp: np.ndarray, area2: np.ndarray

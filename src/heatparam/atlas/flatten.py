@@ -85,15 +85,18 @@ def flatten_charts(topo: Topology, charts: list[np.ndarray], glued: np.ndarray, 
     sizes = np.array([len(c) for c in charts], dtype=np.int64)
     fgroup = np.repeat(np.arange(k), sizes)
     Vl, Fl, vert = chart_mesh(topo, faces, glued, fgroup)
-    uv, iso, flips, cross, disk, vgroup = flatten_components(Vl, Fl, fgroup, k, bound, vert, want)
+    uv, iso, flips, cross, disk, vgroup = flatten_components(Vl, Fl, fgroup, k, bound, vert, want,
+                                                             topo.degenerate[faces])
     return Flattenings(Vl, Fl, vert, uv, vgroup, np.r_[0, np.cumsum(sizes)], iso, flips, cross, disk)
 
 
 def flatten_components(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, k: int, bound: float = np.inf,
-                       vkey: np.ndarray | None = None, want: np.ndarray | None = None):
+                       vkey: np.ndarray | None = None, want: np.ndarray | None = None,
+                       degenerate: np.ndarray | None = None):
     """:func:`flatten_charts` on a mesh whose components are the k groups ``fgroup`` (m,) of faces: (uv (n,2),
     iso (k,), flips (k,), crossings (k,), disk (k,), vgroup (n,)). vkey (n,): a vertex key independent of the rows'
-    order (the component's vertex), used to choose the pins; want (k,) bool: the groups to lay out (default all)."""
+    order (the component's vertex), used to choose the pins; want (k,) bool: the groups to lay out (default all);
+    degenerate (m,) bool: the zero-area faces, where the caller knows them (found by :func:`lscm` otherwise)."""
     n = len(Vl)
     vgroup = np.full(n, -1, dtype=np.int64)
     vgroup[Fl.ravel()] = np.repeat(fgroup, 3)
@@ -119,7 +122,7 @@ def flatten_components(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, k: in
         return uv, iso, flips, cross, disk, vgroup
     sel = solve[fgroup]
     try:
-        uv = _lscm(Vl, Fl[sel], p0[solve], p1[solve])
+        uv = _lscm(Vl, Fl[sel], p0[solve], p1[solve], None if degenerate is None else bool(degenerate[sel].any()))
     except HeatparamError:
         if solve.sum() == 1:
             return uv, iso, flips, cross, disk, vgroup
@@ -163,9 +166,10 @@ def _farthest_per_group(V, rows, grp, src, key, k) -> tuple[np.ndarray, np.ndarr
     return out, dist
 
 
-def _lscm(Vl: np.ndarray, Fl: np.ndarray, p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
+def _lscm(Vl: np.ndarray, Fl: np.ndarray, p0: np.ndarray, p1: np.ndarray, degenerate: bool | None = None
+          ) -> np.ndarray:
     """LSCM (``igl.lscm``: faster than a PARDISO LSCM on cow's charts, the same map to 5e-12) of the faces ``Fl``
-    with the pins p0 at (0,0) and p1 at (1,0); rows no face uses stay at 0."""
+    with the pins p0 at (0,0) and p1 at (1,0); rows no face uses stay at 0. ``degenerate``: as :func:`lscm`'s."""
     mark = np.zeros(len(Vl), dtype=bool)
     mark[Fl.ravel()] = True
     used = np.flatnonzero(mark)
@@ -174,7 +178,7 @@ def _lscm(Vl: np.ndarray, Fl: np.ndarray, p0: np.ndarray, p1: np.ndarray) -> np.
     puv = np.zeros((len(p0) + len(p1), 2))
     puv[len(p0):, 0] = 1.0
     try:
-        res = lscm(Vl[used], loc[Fl], loc[np.concatenate([p0, p1])], puv)
+        res = lscm(Vl[used], loc[Fl], loc[np.concatenate([p0, p1])], puv, degenerate)
     except (RuntimeError, ValueError) as exc:
         raise HeatparamError(f"LSCM failed: {exc}") from None
     uv = np.zeros((len(Vl), 2))
@@ -184,13 +188,14 @@ def _lscm(Vl: np.ndarray, Fl: np.ndarray, p0: np.ndarray, p1: np.ndarray) -> np.
     return uv
 
 
-def lscm(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarray) -> np.ndarray:
+def lscm(V: np.ndarray, F: np.ndarray, b: np.ndarray, bc: np.ndarray, degenerate: bool | None = None) -> np.ndarray:
     """LSCM of (V, F) with the rows ``b`` pinned at ``bc`` (k,2): (n,2), every row used by a face. ``igl.lscm``;
     where F has zero-area faces, the least-squares conformal map of the intrinsically mollified triangles (the
     polish's, ``refine.energy.surface_gradients``): igl's cotangents are NaN on a zero-area face, and the mollified
-    one is laid out as a thin triangle of the right orientation, a start the polish can take. Raises RuntimeError
-    (singular system) as igl does."""
-    if not degenerate_faces(V, F).any():
+    one is laid out as a thin triangle of the right orientation, a start the polish can take. ``degenerate``:
+    whether F has zero-area faces, where the caller knows (``Topology.degenerate``); found here otherwise. Raises
+    RuntimeError (singular system) as igl does."""
+    if not (degenerate_faces(V, F).any() if degenerate is None else degenerate):
         res = igl.lscm(V, F, b, bc)
         return np.asarray(res[0] if isinstance(res, tuple) else res, dtype=np.float64)
     n, m = len(V), len(F)

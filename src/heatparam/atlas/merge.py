@@ -16,7 +16,7 @@ import numpy as np
 from heatparam.atlas.chart_topology import Topology, chart_mesh
 from heatparam.atlas.flatten import Flattenings, crossings_per_chart, flatten_charts, lscm
 from heatparam.atlas.stretches import border_stretches, half_path
-from heatparam.mesh.topology import degenerate_faces, unique_inverse
+from heatparam.mesh.topology import unique_inverse
 from heatparam.metrics import true_scale_iso
 
 __all__ = ["Layouts", "RETRY_GROWTH", "merge", "new_edge_crossings"]
@@ -208,7 +208,7 @@ class Merging:
         k = len(picked)
         ok = np.zeros(k, dtype=bool)
         try:
-            uv = lscm(ext.Vl, ext.Fl, ext.rows, ext.vals)
+            uv = lscm(ext.Vl, ext.Fl, ext.rows, ext.vals, bool(self.topo.degenerate[ext.qf].any()))
         except (RuntimeError, ValueError):
             return ok, np.ones(k, dtype=bool)  # one degenerate chart spoils the shared solve: each union whole
         if not np.isfinite(uv).all():
@@ -216,7 +216,7 @@ class Merging:
         iso, area, sa = true_scale_iso(ext.Vl, ext.Fl, uv)
         grp = ext.grp
         # a zero-area face has no finite iso: flipped only where its (thin) UV triangle is
-        flips = np.bincount(grp, weights=~np.isfinite(iso) & ((sa <= 0) | ~degenerate_faces(ext.Vl, ext.Fl)),
+        flips = np.bincount(grp, weights=~np.isfinite(iso) & ((sa <= 0) | ~self.topo.degenerate[ext.qf]),
                             minlength=k)
         isum = np.bincount(grp, weights=np.where(np.isfinite(iso), iso, 0.0) * area, minlength=k)
         asum = np.bincount(grp, weights=area, minlength=k)

@@ -26,7 +26,6 @@ from heatparam.atlas.flatten import lscm
 from heatparam.atlas.grow import _heap_pop, _heap_push
 from heatparam.atlas.merge import Layouts, new_edge_crossings
 from heatparam.compiled import compiled, warmup
-from heatparam.mesh.topology import degenerate_faces
 from heatparam.metrics import true_scale_iso
 
 __all__ = ["straighten"]
@@ -267,7 +266,7 @@ class _Moves:
         vals = np.concatenate([self.layouts.uv[3 * fp + (jp + 1) % 3], self.layouts.uv[3 * fp + jp]])
         rows, first = np.unique(rows, return_index=True)
         try:
-            uv = lscm(self.Vl, self.Fl, rows, vals[first])
+            uv = lscm(self.Vl, self.Fl, rows, vals[first], bool(self.topo.degenerate[self.qf].any()))
         except (RuntimeError, ValueError):
             return None
         return uv if np.isfinite(uv).all() else None
@@ -280,7 +279,7 @@ class _Moves:
             return np.zeros(k, dtype=bool)
         lay, grp = self.layouts, self.grp
         iso, area, sa = true_scale_iso(self.Vl, self.Fl, self.uv)
-        flips = np.bincount(grp, weights=~np.isfinite(iso) & ((sa <= 0) | ~degenerate_faces(self.Vl, self.Fl)),
+        flips = np.bincount(grp, weights=~np.isfinite(iso) & ((sa <= 0) | ~self.topo.degenerate[self.qf]),
                             minlength=k)
         self.isum = np.bincount(grp, weights=np.where(np.isfinite(iso), iso, 0.0) * area, minlength=k)
         self.asum = np.bincount(grp, weights=area, minlength=k)
