@@ -1,7 +1,7 @@
 """Where an atlas's time goes: ``heatparam.parameterize`` of each mesh under cProfile, the cumulative seconds of its
-stages (repair; the segmentation's growing, farthest seeds, region checks and merges; the joint polish; the pieces
-flattened one by one; packing; the report's overlap count and metrics), after one untimed warm-up call on the
-generated torus (imports, numba's cache, MKL's first call left out).
+stages (repair; the segmentation's growing, farthest seeds, region checks, merges and straightening; the joint
+polish; the pieces flattened one by one; packing; the report's overlap count and metrics), after one untimed warm-up
+call on the generated torus (imports, numba's cache, MKL's first call left out).
 
 Usage: ``python bench/profile_atlas.py [--repeat R] [name ...]`` (../shared/meshes files or generated datasets;
 default cow, 3holes, camelhead, beetle, bunny); open meshes with ``max_distortion=1.05`` as in bench_atlas.py.
@@ -30,6 +30,7 @@ STAGES = {
     "of which seeds": ("atlas/grow.py", "farthest_seeds", None),
     "region checks": ("atlas/flatten.py", "flatten_charts", "segment"),
     "merges": ("atlas/merge.py", "merge", None),
+    "straightening": ("atlas/straighten.py", "straighten", None),
     "joint polish": ("atlas/polish.py", "polish_charts", None),
     "one by one": ("pipeline/atlas_stage.py", "_one_by_one", None),
     "packing": ("atlas/pack.py", "pack_charts", None),

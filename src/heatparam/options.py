@@ -154,7 +154,7 @@ OPTIONS: tuple[Option, ...] = (
            "fill, geodesics, landmarks or stress is set explicitly. always = compute them as a start candidate "
            "anyway (in an atlas: every chart through the pipeline instead of the charts' joint polish); never = "
            "skip them (the conformal layout, or the smoothed surface's, or Tutte starts; an atlas's charts are "
-           "polished together from LSCM unless this is always: BENCHMARKS §10)",
+           "polished together from LSCM unless this is always: docs/history.md §10)",
            MDS_START_MODES, flag="--mds-start", short="when MDS competes for the start", group="refine"),
     Option("seams", "auto", "choice", "cut holes open to the border along the shortest surface paths: auto = when "
            "the map without seams is more than {SEAM_TRY_EXCESS:.2%} from an isometry, and on large meshes its "

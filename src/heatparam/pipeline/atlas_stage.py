@@ -132,7 +132,7 @@ def atlas(V: np.ndarray, F: np.ndarray, flatten_disk: DiskFlattener, *, max_dist
     bound = DEFAULT_MAX_DISTORTION if max_distortion is None else float(max_distortion)
     opts = {"seed": seed, **pipeline_options}
     if opts.get("mds_start", "auto") == "auto":  # charts are small and clean: the heat stage never won a start on
-        opts["mds_start"] = "never"  # them (the same atlases, 26-36% faster; BENCHMARKS §10)
+        opts["mds_start"] = "never"  # them (the same atlases, 26-36% faster; docs/history.md §10)
     rep = repair(V, F)
     # a scan's main piece is one piece in pattern mode, as a disk is (parameterize); a texture bounds it
     main_bound = None if max_distortion is None and pack == "scale" else bound
