@@ -65,6 +65,7 @@ class Straightening:
         self.indptr, self.indices, self.weights = (G.indptr.astype(np.int64), G.indices.astype(np.int64),
                                                    G.data.astype(np.float64))
         self.tried: set = set()
+        self.paths: dict = {}  # seam key -> (path, length), until one of its charts changes
         self.stats = {"straightened": 0, "tried": 0}
 
     def run(self) -> dict:
@@ -89,7 +90,9 @@ class Straightening:
         for seam in self._seams():
             if self._key(seam) in self.tried or not (self.layouts.ok[seam.a] and self.layouts.ok[seam.b]):
                 continue  # tried, or a chart without a checked layout to extend
-            path, dist = self._path(seam)
+            if self._key(seam) not in self.paths:
+                self.paths[self._key(seam)] = self._path(seam)
+            path, dist = self.paths[self._key(seam)]
             if path is not None and seam.length - dist > seam.length / len(seam.h):
                 cand.append((seam.length - dist, seam, path))
             else:
@@ -225,6 +228,7 @@ class Straightening:
             seam, fa, fb, h, g = props[i]
             self.chart[fa], self.chart[fb] = seam.a, seam.b
             self.glued[h] = g
+            self.paths = {k: v for k, v in self.paths.items() if not {k[0], k[1]} & {seam.a, seam.b}}
         moves.keep(ok)
         self.stats["straightened"] += int(ok.sum())
 
