@@ -98,3 +98,14 @@ def spiked_cylinder(amp: float = 6.0) -> tuple[np.ndarray, np.ndarray]:
         radial = V[v] * [1.0, 0.0, 1.0]  # the patch is rolled around the y axis
         V[v] += amp * 0.06 * radial / np.linalg.norm(radial)
     return V, s.F
+
+
+def assert_corner_lengths_kept(corner_uv: np.ndarray, V: np.ndarray, F: np.ndarray, rtol: float) -> None:
+    """Every face's corner-to-corner UV lengths (``corner_uv`` (3m,2), row ``3 f + j``) are its 3D edge lengths: the
+    layout of a flat surface is an isometry."""
+    U = corner_uv.reshape(-1, 3, 2)
+    P = V[F]
+    for j in range(3):
+        lu = np.linalg.norm(U[:, (j + 1) % 3] - U[:, j], axis=1)
+        lp = np.linalg.norm(P[:, (j + 1) % 3] - P[:, j], axis=1)
+        np.testing.assert_allclose(lu, lp, rtol=rtol)

@@ -13,6 +13,8 @@ from heatparam.atlas.flatten import flatten_charts
 from heatparam.atlas.merge import Layouts, Merging
 from heatparam.atlas.stretches import border_stretches
 
+from conftest import assert_corner_lengths_kept
+
 
 def _two_charts(V, F, left):
     """The faces split by ``left`` (m,) bool into charts 0 (left) and 1, each laid out by LSCM: (topo, glued,
@@ -49,12 +51,7 @@ def test_extension_of_a_flat_chart_is_exact():
     ok, undecided = _merging(topo, left, glued, layouts, 1.0 + 1e-7).extension_tests([(0, 1, st)])
     assert ok[0] and not undecided[0]
     assert (layouts.uv[3 * members[1][:, None] + np.arange(3)] == before).all()  # the larger chart stays put
-    U = layouts.uv.reshape(-1, 3, 2)
-    P = s.V[s.F]
-    for j in range(3):
-        lu = np.linalg.norm(U[:, (j + 1) % 3] - U[:, j], axis=1)
-        lp = np.linalg.norm(P[:, (j + 1) % 3] - P[:, j], axis=1)
-        np.testing.assert_allclose(lu, lp, rtol=1e-7)
+    assert_corner_lengths_kept(layouts.uv, s.V, s.F, rtol=1e-7)
     # the two sides of the stretch meet: chart 0's corners on it sit where chart 1's do
     h = st
     o = topo.opp[h]

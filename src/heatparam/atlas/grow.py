@@ -17,7 +17,7 @@ import scipy.sparse as sp
 from heatparam.atlas.chart_topology import Topology, glue_inside
 from heatparam.compiled import compiled, warmup
 
-__all__ = ["DEFAULT_CONE", "farthest_seeds", "grow", "halves"]
+__all__ = ["DEFAULT_CONE", "dijkstra", "farthest_seeds", "grow", "halves"]
 
 DEFAULT_CONE = 60.0  # degrees: normal-cone half angle of a grown region
 
@@ -91,10 +91,12 @@ def farthest_seeds(topo: Topology, faces: np.ndarray, k: int, seed: int) -> np.n
 
 
 @compiled(_heap_push, _heap_pop)
-def _lower(indptr, indices, data, source, dist):  # pragma: no cover - compiled
-    """In place: ``dist`` (n,) lowered to the graph distances from ``source`` where those are shorter (Dijkstra;
-    a vertex no shorter path reaches is not expanded: what lies beyond it keeps its distance, which its own
-    distance bounds)."""
+def dijkstra(indptr, indices, data, source, dist, prev, allowed, target):  # pragma: no cover - compiled
+    """In place: ``dist`` (n,) lowered to the graph distances from ``source`` (CSR graph, edge lengths ``data``)
+    where those are shorter (a vertex no shorter path reaches is not expanded: what lies beyond it keeps its
+    distance, which its own distance bounds); ``prev`` (n,) each lowered vertex's predecessor (an empty array: not
+    kept); only ``allowed`` (n,) vertices are entered (an empty array: all); stops once ``target`` is reached
+    (-1: never)."""
     heap, key, n = np.empty(1024), np.zeros((1024, 2), dtype=np.int64), 0
     dist[source] = 0.0
     heap, key, n = _heap_push(heap, key, n, 0.0, source, 0)
@@ -102,12 +104,25 @@ def _lower(indptr, indices, data, source, dist):  # pragma: no cover - compiled
         d, v, _, n = _heap_pop(heap, key, n)
         if d > dist[v]:
             continue
+        if v == target:
+            return
         for i in range(indptr[v], indptr[v + 1]):
             w = indices[i]
+            if len(allowed) and not allowed[w]:
+                continue
             nd = d + data[i]
             if nd < dist[w]:
                 dist[w] = nd
+                if len(prev):
+                    prev[w] = v
                 heap, key, n = _heap_push(heap, key, n, nd, w, 0)
+
+
+@compiled(dijkstra)
+def _lower(indptr, indices, data, source, dist):  # pragma: no cover - compiled
+    """In place: ``dist`` (n,) lowered to the graph distances from ``source`` where those are shorter
+    (:func:`dijkstra` over every vertex)."""
+    dijkstra(indptr, indices, data, source, dist, np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.bool_), -1)
 
 
 @compiled(_lower)

@@ -23,9 +23,8 @@ from scipy.sparse.csgraph import connected_components
 
 from heatparam.atlas.chart_topology import Topology, chart_mesh
 from heatparam.atlas.flatten import lscm
-from heatparam.atlas.grow import _heap_pop, _heap_push
+from heatparam.atlas.grow import dijkstra
 from heatparam.atlas.merge import Layouts, new_edge_crossings
-from heatparam.compiled import compiled, warmup
 from heatparam.metrics import true_scale_iso
 
 __all__ = ["straighten"]
@@ -334,49 +333,16 @@ class _Moves:
                 lay.area[c] += float(self.asum[g] - self.asum_out[g])
 
 
-@compiled(_heap_push, _heap_pop)
-def _shortest_path(indptr, indices, data, allowed, s, t):  # pragma: no cover - compiled
-    """The vertices of a shortest path from s to t through ``allowed`` vertices (CSR graph, edge lengths ``data``),
-    s first; empty when t cannot be reached."""
+def _shortest_path(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, allowed: np.ndarray, s: int, t: int
+                   ) -> np.ndarray:
+    """The vertices of a shortest path from s to t through ``allowed`` vertices (CSR graph, edge lengths ``data``;
+    the compiled ``grow.dijkstra``), s first; empty when t cannot be reached."""
     n = len(indptr) - 1
-    dist = np.full(n, np.inf)
-    prev = np.full(n, -1, dtype=np.int64)
-    heap, key, m = np.empty(1024), np.zeros((1024, 2), dtype=np.int64), 0
-    dist[s] = 0.0
-    heap, key, m = _heap_push(heap, key, m, 0.0, s, 0)
-    while m:
-        d, v, _, m = _heap_pop(heap, key, m)
-        if d > dist[v]:
-            continue
-        if v == t:
-            break
-        for i in range(indptr[v], indptr[v + 1]):
-            w = indices[i]
-            if not allowed[w]:
-                continue
-            nd = d + data[i]
-            if nd < dist[w]:
-                dist[w] = nd
-                prev[w] = v
-                heap, key, m = _heap_push(heap, key, m, nd, w, 0)
+    dist, prev = np.full(n, np.inf), np.full(n, -1, dtype=np.int64)
+    dijkstra(indptr, indices, data, s, dist, prev, allowed, t)
     if not np.isfinite(dist[t]):
         return np.zeros(0, dtype=np.int64)
-    k = 1
-    v = t
-    while v != s:
-        v = prev[v]
-        k += 1
-    out = np.empty(k, dtype=np.int64)
-    v = t
-    for i in range(k - 1, -1, -1):
-        out[i] = v
-        v = prev[v]
-    return out
-
-
-@warmup
-def _warm() -> None:
-    """The compiled loop runs once on a path of three vertices (:func:`heatparam.compiled.warm_all`)."""
-    indptr = np.array([0, 1, 3, 4], dtype=np.int64)
-    indices = np.array([1, 0, 2, 1], dtype=np.int64)
-    _shortest_path(indptr, indices, np.ones(4), np.ones(3, dtype=bool), 0, 2)
+    path = [t]
+    while path[-1] != s:
+        path.append(int(prev[path[-1]]))
+    return np.array(path[::-1], dtype=np.int64)
