@@ -122,6 +122,13 @@ def test_marked_seams_split_vertices(marked, vertices):
         assert len(set(loops.vertex[vert == v])) <= 1
 
 
+def test_polygon_edges_cut_the_polygons_out():
+    """The edges of the chosen polygons, theirs alone: a quad between two triangles, cut out on all four sides."""
+    loops, edges = _loops([[0, 1, 2], [1, 3, 4, 2], [3, 5, 4]])
+    out = meshdata.polygon_edges(loops, np.array([1]), len(edges))
+    assert {e for e, i in edges.items() if out[i]} == {(1, 3), (3, 4), (2, 4), (1, 2)}
+
+
 def test_fit_unit_square_keeps_shape():
     uv = np.random.default_rng(0).normal(size=(10, 3, 2)) * [3.0, 1.0]
     fit = meshdata.fit_unit_square(uv, 0.01)

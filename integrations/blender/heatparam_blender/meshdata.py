@@ -159,6 +159,14 @@ def chart_borders(loops: Loops, tris: Triangles, corner_uv: np.ndarray, n_edges:
     return out
 
 
+def polygon_edges(loops: Loops, polygons: np.ndarray, n_edges: int) -> np.ndarray:
+    """(E,) bool: the edges of the polygons ``polygons`` (their ids): cutting there makes each a piece of its own,
+    which heatparam lays out whole (a polygon is a disk)."""
+    out = np.zeros(n_edges, dtype=bool)
+    out[loops.edge[np.isin(loops.polygon, polygons)]] = True
+    return out
+
+
 def loop_uvs(tris: Triangles, corner_uv: np.ndarray, old: np.ndarray, tol: float = 1e-9
              ) -> tuple[np.ndarray, np.ndarray]:
     """The UV of every loop: ``corner_uv`` (t,3,2) at the triangles' loops, ``old`` (L,2) elsewhere. An n-gon loop

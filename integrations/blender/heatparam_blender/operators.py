@@ -12,13 +12,14 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, St
 from bpy_extras.io_utils import ExportHelper
 
 from .knobs import KNOBS, knob_args, scene_units
-from .meshdata import Loops, chart_borders, fit_unit_square, loop_uvs, marked_seams, triangles, uv_seams
+from .meshdata import Loops, chart_borders, fit_unit_square, loop_uvs, marked_seams, polygon_edges, triangles, uv_seams
 from .runner import RunError, Unwrap, find_command
 
 PATTERN_SUFFIXES = (".dxf", ".svg", ".step", ".stp")
 #: heatparam runs at most this often on one mesh: again when its charts cut through quads or n-gons, with their
-#: borders moved onto polygon edges (``meshdata.chart_borders``), until no polygon is cut
-CHART_PASSES = 3
+#: borders moved onto polygon edges (``meshdata.chart_borders``) while that cuts fewer polygons each run; where it
+#: stops doing so, the polygons still cut become charts of their own (``meshdata.polygon_edges``), one run more
+CHART_PASSES = 5
 _PACK_LABELS = {"scale": "charts at true scale in the scene's units", "texture": "UVs in [0,1]² (a texture map)"}
 
 
@@ -178,7 +179,7 @@ class HEATPARAM_OT_unwrap(bpy.types.Operator):
         if split.any():
             faces = len(np.unique(loops.polygon[split]))
             self.report({"WARNING"}, f"{obj.name}: {faces} faces are still crossed by a chart border after "
-                                     f"{CHART_PASSES} passes and cannot keep one UV per corner: triangulate them "
+                                     f"{CHART_PASSES} runs and cannot keep one UV per corner: triangulate them "
                                      "(Face ▸ Triangulate Faces) and unwrap again")
         if self.mark_seams:
             mesh.edges.foreach_set("use_seam", marked_seams(mesh) | uv_seams(loops, chosen[loops.polygon], uv,
@@ -190,16 +191,25 @@ class HEATPARAM_OT_unwrap(bpy.types.Operator):
                  old: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every loop's UV (``old`` where not chosen) and the loops whose polygon a chart border still crosses."""
         matrix = np.array(obj.matrix_world, dtype=np.float64)
+        best, cut_out = None, False  # best: (polygons cut, loop UVs, their split loops) of the run that cut fewest
         for _ in range(CHART_PASSES):
             tris = triangles(obj.data, loops, chosen, seam, matrix, factor)
             corner_uv = job.corner_uvs(tris.V, tris.F)
             if self.pack == "texture":  # the gutter at the square's border: half the one between charts, as heatparam's
                 corner_uv = fit_unit_square(corner_uv, self.padding / (2.0 * self.resolution))
             uv, split = loop_uvs(tris, corner_uv, old)
-            if not split.any():
+            cut = np.unique(loops.polygon[split])
+            progress = best is None or len(cut) < len(best[0])
+            if progress:
+                best = (cut, uv, split)
+            if not len(best[0]) or (cut_out and not progress):
                 break
-            seam = seam | chart_borders(loops, tris, corner_uv, len(obj.data.edges))
-        return uv, split
+            if progress:
+                seam = seam | chart_borders(loops, tris, corner_uv, len(obj.data.edges))
+            else:  # moving the borders no longer helps (a cut from a hole through a large n-gon, run after run)
+                seam = seam | polygon_edges(loops, np.union1d(best[0], cut), len(obj.data.edges))
+                cut_out = True
+        return best[1], best[2]
 
 
 class HEATPARAM_OT_export_pattern(bpy.types.Operator, ExportHelper):
