@@ -19,7 +19,7 @@ from heatparam.atlas.stretches import border_stretches, half_path
 from heatparam.mesh.topology import unique_inverse
 from heatparam.metrics import true_scale_iso
 
-__all__ = ["Layouts", "RETRY_GROWTH", "merge", "new_edge_crossings"]
+__all__ = ["Layouts", "RETRY_GROWTH", "extension_sums", "merge", "neighbour_pins", "new_edge_crossings"]
 
 RETRY_GROWTH = 1.25  # a failed merge is tried again once one side has grown by this factor
 
@@ -213,13 +213,8 @@ class Merging:
             return ok, np.ones(k, dtype=bool)  # one degenerate chart spoils the shared solve: each union whole
         if not np.isfinite(uv).all():
             return ok, np.ones(k, dtype=bool)
-        iso, area, sa = true_scale_iso(ext.Vl, ext.Fl, uv)
         grp = ext.grp
-        # a zero-area face has no finite iso: flipped only where its (thin) UV triangle is
-        flips = np.bincount(grp, weights=~np.isfinite(iso) & ((sa <= 0) | ~self.topo.degenerate[ext.qf]),
-                            minlength=k)
-        isum = np.bincount(grp, weights=np.where(np.isfinite(iso), iso, 0.0) * area, minlength=k)
-        asum = np.bincount(grp, weights=area, minlength=k)
+        flips, isum, asum = extension_sums(self.topo, ext.Vl, ext.Fl, uv, ext.qf, grp, k)
         lay = self.layouts
         mean = (np.array([lay.isum[c] for c in ext.big]) + isum) / np.maximum(
             np.array([lay.area[c] for c in ext.big]) + asum, 1e-300)
@@ -285,10 +280,7 @@ class _Extensions:
         hs = np.concatenate(hq)
         hg = np.repeat(np.arange(k), [len(x) for x in hq])
         pos = np.searchsorted(self.grp * len(topo.F) + self.qf, hg * len(topo.F) + hs // 3)
-        kq, hp = hs % 3, topo.opp[hs]
-        fp, jp = hp // 3, hp % 3
-        rows = np.concatenate([self.Fl[pos, kq], self.Fl[pos, (kq + 1) % 3]])
-        vals = np.concatenate([layouts.uv[3 * fp + (jp + 1) % 3], layouts.uv[3 * fp + jp]])
+        rows, vals = neighbour_pins(topo, self.Fl, pos, hs, layouts.uv)
         # the union is a disk when the stretch is one arc of both borders: n + 1 corners of each chart along its n
         # edges. A chart with an inner seam of its own ending on the stretch has two corners there (the smaller
         # chart: two rows; the larger: two places, or one row pinned at two places); gluing would close the seam's
@@ -305,6 +297,29 @@ class _Extensions:
         arc = np.bincount(hg, minlength=k) + 1
         self.undecided = (q_corners != arc) | (p_corners != arc)
         self.rows, self.vals = rows[first], vals[first]
+
+
+def neighbour_pins(topo: Topology, Fl: np.ndarray, pos: np.ndarray, hs: np.ndarray, corner_uv: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """The pins of an extension: each half-edge ``hs`` (k,) of a face laid out as row ``pos`` (k,) of ``Fl`` meets
+    a face whose corners lie at ``corner_uv`` (3m,2, row ``3 f + j``); its two corners' rows (2k,) take that face's
+    UVs there (2k,2): corner j of the face is corner jp + 1 of the one across half-edge jp, corner j + 1 is jp."""
+    kq, hp = hs % 3, topo.opp[hs]
+    fp, jp = hp // 3, hp % 3
+    rows = np.concatenate([Fl[pos, kq], Fl[pos, (kq + 1) % 3]])
+    vals = np.concatenate([corner_uv[3 * fp + (jp + 1) % 3], corner_uv[3 * fp + jp]])
+    return rows, vals
+
+
+def extension_sums(topo: Topology, Vl: np.ndarray, Fl: np.ndarray, uv: np.ndarray, qf: np.ndarray,
+                   grp: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per group of an extension's faces (mesh faces ``qf`` (q,) laid out as the rows of ``Fl`` at ``uv``, group
+    ``grp`` (q,) of k): (flipped faces, Σ area · iso over the others, Σ area), each (k,). A zero-area face has no
+    finite iso: it is flipped only where its (thin) UV triangle is."""
+    iso, area, sa = true_scale_iso(Vl, Fl, uv)
+    flips = np.bincount(grp, weights=~np.isfinite(iso) & ((sa <= 0) | ~topo.degenerate[qf]), minlength=k)
+    isum = np.bincount(grp, weights=np.where(np.isfinite(iso), iso, 0.0) * area, minlength=k)
+    return flips, isum, np.bincount(grp, weights=area, minlength=k)
 
 
 def _with_stretches(topo: Topology, glued: np.ndarray, picked: list) -> np.ndarray:

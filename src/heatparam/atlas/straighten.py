@@ -24,7 +24,8 @@ from scipy.sparse.csgraph import connected_components
 from heatparam.atlas.chart_topology import Topology, chart_mesh
 from heatparam.atlas.flatten import lscm
 from heatparam.atlas.grow import dijkstra
-from heatparam.atlas.merge import Layouts, new_edge_crossings
+from heatparam.atlas.merge import Layouts, extension_sums, neighbour_pins, new_edge_crossings
+from heatparam.mesh.topology import edge_graph
 from heatparam.metrics import true_scale_iso
 
 __all__ = ["straighten"]
@@ -56,10 +57,9 @@ class Straightening:
 
     def __init__(self, topo: Topology, chart: np.ndarray, glued: np.ndarray, layouts: Layouts, bound: float):
         self.topo, self.chart, self.glued, self.layouts, self.bound = topo, chart, glued, layouts, bound
-        n = len(topo.V)
-        ha, hb = topo.ends()
-        self.ha, self.hb = ha, hb
-        G = sp.csr_matrix((topo.hlen, (ha, hb)), shape=(n, n))
+        self.ha, self.hb = topo.ends()
+        # half-edge j of a face runs from corner j to j + 1: the edge opposite corner j + 2 (edge_graph's columns)
+        G = edge_graph(topo.F, topo.hlen.reshape(-1, 3)[:, [1, 2, 0]], len(topo.V))
         G = G.maximum(G.T).tocsr()  # border edges have one half-edge: both directions
         self.indptr, self.indices, self.weights = (G.indptr.astype(np.int64), G.indices.astype(np.int64),
                                                    G.data.astype(np.float64))
@@ -202,8 +202,8 @@ class Straightening:
         was_a = chart[U] == seam.a
         first_is_a = (was_a & (lab == 0)).sum() >= (was_a & (lab == 1)).sum()
         fa, fb = (U[lab == 0], U[lab == 1]) if first_is_a else (U[lab == 1], U[lab == 0])
-        if len(fa) == (chart == seam.a).sum() and np.array_equal(fa, np.flatnonzero(chart == seam.a)):
-            return None
+        if np.array_equal(fa, np.flatnonzero(chart == seam.a)):
+            return None  # the path is the seam
         g = np.zeros(len(h), dtype=bool)
         g[join] = True
         return fa, fb, h, g
@@ -261,12 +261,8 @@ class _Moves:
         o = topo.opp[hq]
         shared = self.glued[hq] & (o >= 0)  # glued to a face of the same new chart that keeps its chart
         shared[shared] = ~mask[o[shared] // 3]
-        pos = np.repeat(np.arange(len(qf)), 3)[shared]
-        kq, hp = hq[shared] % 3, o[shared]
-        fp, jp = hp // 3, hp % 3
-        # corner kq of the moved face is corner jp + 1 of its neighbour, corner kq + 1 is corner jp
-        rows = np.concatenate([self.Fl[pos, kq], self.Fl[pos, (kq + 1) % 3]])
-        vals = np.concatenate([self.layouts.uv[3 * fp + (jp + 1) % 3], self.layouts.uv[3 * fp + jp]])
+        rows, vals = neighbour_pins(topo, self.Fl, np.repeat(np.arange(len(qf)), 3)[shared], hq[shared],
+                                    self.layouts.uv)
         rows, first = np.unique(rows, return_index=True)
         try:
             uv = lscm(self.Vl, self.Fl, rows, vals[first], bool(self.topo.degenerate[self.qf].any()))
@@ -281,11 +277,7 @@ class _Moves:
         if self.uv is None:
             return np.zeros(k, dtype=bool)
         lay, grp = self.layouts, self.grp
-        iso, area, sa = true_scale_iso(self.Vl, self.Fl, self.uv)
-        flips = np.bincount(grp, weights=~np.isfinite(iso) & ((sa <= 0) | ~self.topo.degenerate[self.qf]),
-                            minlength=k)
-        self.isum = np.bincount(grp, weights=np.where(np.isfinite(iso), iso, 0.0) * area, minlength=k)
-        self.asum = np.bincount(grp, weights=area, minlength=k)
+        flips, self.isum, self.asum = extension_sums(self.topo, self.Vl, self.Fl, self.uv, self.qf, grp, k)
         # what the moved faces took from the chart they left (group 2 i's faces left chart b, 2 i + 1's chart a)
         old, old_area = self._old_iso()
         other = grp ^ 1
