@@ -61,6 +61,19 @@ def excess_cone(rings: int = 8, sectors: int = 64, wave: float = 0.35, k: int = 
     return V, np.array(F, dtype=np.int64)
 
 
+def slit_fan(sectors: int = 12, apex: float = 0.0, turn: float = 2 * np.pi) -> tuple[np.ndarray, np.ndarray]:
+    """One ring of triangles around a centre (vertex 0) at height ``apex`` over a rim on the unit circle, cut open
+    along the edge from the centre to the rim's first vertex (a second vertex on that ray, 1.2 out, closes the
+    ring): a disk. Flat (apex 0) its isometric layout closes the cut, its border touching itself at the centre
+    only (the cut's sides of different lengths, as on a CAD part: no two rim edges meet); a cone (apex > 0) has
+    less than 2π there. ``turn``: the rim's angle in the plane (the mesh's own flat layout: 2π closes the cut)."""
+    psi = np.linspace(0.0, turn, sectors + 1)
+    r = np.r_[np.ones(sectors), 1.2]
+    V = np.vstack([[0.0, 0.0, apex], np.column_stack([r * np.cos(psi), r * np.sin(psi), np.zeros(sectors + 1)])])
+    F = np.array([[0, j + 1, j + 2] for j in range(sectors)], dtype=np.int64)
+    return V, F
+
+
 def with_ear(V: np.ndarray, F: np.ndarray, uv: np.ndarray, fold: bool) -> tuple[np.ndarray, np.ndarray, int]:
     """(V, F) with one more triangle on its border, over the bottom boundary edge nearest a fifth of the width of
     the flat layout ``uv``: a scan's border ear whose tip is a new vertex. ``fold``: the ear is folded under the

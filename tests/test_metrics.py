@@ -234,6 +234,22 @@ def test_boundary_crossings_folded_strip():
     assert M.summary(V, F, uv)["bijective"] is False
 
 
+def test_boundary_crossings_count_a_border_that_touches_itself_at_a_vertex():
+    """A fan cut open along one edge, laid out with the cut closed: the two border edges leaving the centre lie on
+    one ray (they share the centre, so no edge pair is tested) and the border touches itself there; opened a little
+    it does not, closed past 2π the two end triangles overlap."""
+    from conftest import slit_fan
+
+    V, F = slit_fan()
+    assert M.boundary_crossings(V[:, :2], F) == 1
+    assert M.segment_crossings(V[:, :2], M.boundary_edges(F)) == 0
+    assert M.summary(V, F, V[:, :2])["bijective"] is False
+    V, F = slit_fan(turn=0.99 * 2 * np.pi)
+    assert M.boundary_crossings(V[:, :2], F) == 0
+    V, F = slit_fan(turn=1.01 * 2 * np.pi)  # the centre wraps, and the end triangles' rim edges cross
+    assert M.boundary_crossings(V[:, :2], F) == M.segment_crossings(V[:, :2], M.boundary_edges(F)) + 1
+
+
 def test_boundary_crossings_large_circle():
     n = 50_000
     th = 2 * np.pi * np.arange(n) / n

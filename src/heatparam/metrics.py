@@ -38,7 +38,9 @@ from heatparam.mesh.topology import DEGENERATE_AREA_REL, boundary_edges, boundar
 
 __all__ = [
     "PerFaceDistortion",
+    "border_wraps",
     "boundary_crossings",
+    "corner_angles",
     "crossing_pairs",
     "diameter",
     "distortion",
@@ -51,6 +53,7 @@ __all__ = [
     "summary",
     "true_scale_iso",
     "weld_uv",
+    "wrapped",
 ]
 
 _P = 0.95  # percentile reported as *_p95
@@ -58,6 +61,9 @@ _CELL_MAX = 32  # a grid cell with more edges than this is refined (boundary_cro
 _MAX_DEPTH = 4  # refinement levels of the crossing grid
 _REFINE = 4.0  # cell size divisor per refinement level
 _MAX_ENTRIES = 20_000_000  # (edge, cell) entries allowed per refinement level
+# a border vertex whose corner angles sum to within this of 2π (rad) has its border touching itself: summation
+# rounding is ~1e-14, any real gap far larger
+WRAP_TOL = 1e-9
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -477,9 +483,10 @@ def boundary_crossings(uv: np.ndarray, F: np.ndarray) -> int:
     through a uniform grid (cell ~ median edge length, refined where crowded) with vectorized orientation
     predicates. Counted: pairs that cross properly (each segment's endpoints strictly on opposite sides of
     the other) and collinear pairs whose overlap has positive length. Pairs sharing a vertex index are
-    skipped, and mere touching (an endpoint exactly on the other segment) is not counted. A layout whose
-    boundaries do not cross can still overlap only if one chart lies entirely inside another, which this
-    does not detect.
+    skipped, and mere touching (an endpoint exactly on the other segment) is not counted; a boundary vertex
+    where the boundary meets or passes itself (its corner angles sum to 2π or more, :func:`border_wraps`: the
+    two edges leaving it then lie on one ray, or cross) counts as one. A layout whose boundaries do not cross
+    can still overlap only if one chart lies entirely inside another, which this does not detect.
 
     Parameters
     ----------
@@ -495,7 +502,32 @@ def boundary_crossings(uv: np.ndarray, F: np.ndarray) -> int:
     uv = _points(uv, 2, "uv")
     F = _faces(F, len(uv), "F")
     _check_finite(uv, F, "uv")
-    return segment_crossings(uv, boundary_edges(F))
+    E = boundary_edges(F)
+    return segment_crossings(uv, E) + border_wraps(uv, F, unique_ints(E))
+
+
+def corner_angles(T: np.ndarray) -> np.ndarray:
+    """(m,3) the signed angle of each corner of the UV triangles ``T`` (m,3,2), in (-π, π]: positive on a
+    counter-clockwise triangle."""
+    e1 = np.roll(T, -1, axis=1) - T
+    e2 = np.roll(T, 1, axis=1) - T
+    return np.arctan2(e1[..., 0] * e2[..., 1] - e1[..., 1] * e2[..., 0], np.einsum("mjc,mjc->mj", e1, e2))
+
+
+def border_wraps(uv: np.ndarray, F: np.ndarray, border: np.ndarray) -> int:
+    """Number of the ``border`` rows (k,) of ``uv`` whose corner angles in ``F`` (m,3) sum to 2π or more (less
+    :data:`WRAP_TOL`): there the border touches or passes itself, a point of the surface on each side of it
+    mapped to one place, which no check of edge pairs sees (the edges share the vertex)."""
+    if not len(border):
+        return 0
+    s = np.bincount(F.ravel(), weights=corner_angles(uv[F]).ravel(), minlength=len(uv))
+    return int(np.count_nonzero(wrapped(s[border])))
+
+
+def wrapped(angle_sum: np.ndarray) -> np.ndarray:
+    """bool per border vertex of its corner angles' sum: 2π or more (less :data:`WRAP_TOL`), the border touching
+    or passing itself there."""
+    return angle_sum >= 2.0 * np.pi - WRAP_TOL
 
 
 def inverted_loops(uv: np.ndarray, F: np.ndarray) -> int:

@@ -75,6 +75,20 @@ def test_extension_that_would_overlap_is_refused():
         assert ok[0] == expect and not undecided[0]
 
 
+def test_extension_that_would_close_a_cut_is_refused():
+    """Two halves of a flat fan cut open along one edge from its centre: merged along the other half's edge, the
+    union closes the cut, its border touching itself at the centre (both border edges there leave the same vertex,
+    so no pair of edges crosses): refused. The same on a cone (less than 2π at the centre) passes."""
+    from conftest import slit_fan
+
+    for apex, expect in ((0.0, False), (0.4, True)):
+        V, F = slit_fan(apex=apex)
+        left = np.arange(len(F)) < len(F) // 2
+        topo, glued, layouts, members, st = _two_charts(V, F, left)
+        ok, undecided = _merging(topo, left, glued, layouts, np.inf).extension_tests([(0, 1, st)])
+        assert ok[0] == expect and not undecided[0]
+
+
 def _slit(topo, glued, members, c, st):
     """``glued`` with chart c cut open along two edges from a vertex in the middle of the stretch ``st`` into the
     chart (v → u → w, u and w inner vertices); (the cut glued, the first half-edge cut)."""

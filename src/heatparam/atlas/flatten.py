@@ -18,7 +18,7 @@ import scipy.sparse.linalg as spla
 from heatparam.atlas.chart_topology import Topology, chart_mesh
 from heatparam.errors import HeatparamError
 from heatparam.mesh.topology import degenerate_faces, unique_ints
-from heatparam.metrics import crossing_pairs, true_scale_iso
+from heatparam.metrics import corner_angles, crossing_pairs, true_scale_iso, wrapped
 from heatparam.refine.energy import surface_gradients
 
 __all__ = ["Flattenings", "chart_iso", "crossings_per_chart", "flatten_charts", "flatten_components", "lscm",
@@ -140,8 +140,17 @@ def flatten_components(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, k: in
     finite = np.bincount(fgroup, weights=~np.isfinite(uv[Fl]).all(axis=(1, 2)), minlength=k) == 0
     iso = np.where(solve & finite, mean, np.inf)
     check = solve & finite & (flips == 0) & (iso <= bound)
-    cross[check] = crossings_per_chart(uv, Fl, a, b, bd, vgroup, check, k)
+    cross[check] = crossings_per_chart(uv, Fl, a, b, bd, vgroup, check, k) + _wraps(uv, Fl, check[fgroup], bv,
+                                                                                    vgroup, k)[check]
     return uv, iso, flips, cross, disk, vgroup
+
+
+def _wraps(uv: np.ndarray, Fl: np.ndarray, sel: np.ndarray, bv: np.ndarray, vgroup: np.ndarray, k: int
+           ) -> np.ndarray:
+    """(k,) per chart its border rows ``bv`` where the border touches itself (:func:`heatparam.metrics.wrapped`,
+    the corner angles of the faces ``sel`` summed): the edge-pair test skips edges that share a vertex."""
+    s = np.bincount(Fl[sel].ravel(), weights=corner_angles(uv[Fl[sel]]).ravel(), minlength=len(uv))
+    return np.bincount(vgroup[bv[wrapped(s[bv])]], minlength=k)
 
 
 def _first_per_group(rows: np.ndarray, grp: np.ndarray, key: np.ndarray, k: int) -> np.ndarray:

@@ -16,8 +16,8 @@ import numpy as np
 from heatparam.atlas.chart_topology import Topology, chart_mesh
 from heatparam.atlas.flatten import Flattenings, crossings_per_chart, flatten_charts, lscm
 from heatparam.atlas.stretches import border_stretches, half_path
-from heatparam.mesh.topology import unique_inverse
-from heatparam.metrics import true_scale_iso
+from heatparam.mesh.topology import unique_ints, unique_inverse
+from heatparam.metrics import corner_angles, true_scale_iso, wrapped
 
 __all__ = ["Layouts", "RETRY_GROWTH", "extension_sums", "merge", "neighbour_pins", "new_edge_crossings"]
 
@@ -250,8 +250,7 @@ class Merging:
         inner = _with_stretches(self.topo, self.glued, [ext.picked[i] for i in idx])
         h = (3 * faces[:, None] + np.arange(3)).ravel()
         hgroup, hnew = np.repeat(fgroup, 3), np.repeat(new, 3)
-        border = ~inner[h]
-        return new_edge_crossings(self.topo, C, h[border], hgroup[border], hnew[border], k)
+        return new_edge_crossings(self.topo, C, h, hgroup, hnew, ~inner[h], k)
 
 
 class _Extensions:
@@ -345,10 +344,13 @@ def _places(group: np.ndarray, vertex: np.ndarray, uv: np.ndarray) -> tuple[np.n
 
 
 def new_edge_crossings(topo: Topology, C: np.ndarray, h: np.ndarray, hgroup: np.ndarray, hnew: np.ndarray,
-                        k: int) -> np.ndarray:
-    """(k,) pairs of crossing border edges per union: its border half-edges ``h`` (union ``hgroup``, ``hnew``: of
-    its smaller chart) at the corner UVs ``C`` (3m,2); edges of the larger chart are kept only within the bounding
-    box of the union's new edges."""
+                       border: np.ndarray, k: int) -> np.ndarray:
+    """(k,) per union: pairs of crossing border edges, plus border vertices where it touches itself. Its faces'
+    half-edges ``h`` (union ``hgroup``, ``hnew``: of its new faces, ``border``: on its border) at the corner UVs
+    ``C`` (3m,2); edges of the rest are kept only within the bounding box of the union's new edges, vertices only
+    where a new face has a corner."""
+    wraps = _new_wraps(topo, C, h, hgroup, hnew, border, k)
+    h, hgroup, hnew = h[border], hgroup[border], hnew[border]
     tail = h - h % 3 + (h % 3 + 1) % 3
     A, B = C[h], C[tail]
     lo, hi = np.full((k, 2), np.inf), np.full((k, 2), -np.inf)
@@ -362,5 +364,22 @@ def new_edge_crossings(topo: Topology, C: np.ndarray, h: np.ndarray, hgroup: np.
     pgroup = np.concatenate([hgroup, hgroup])
     ids, first = _places(pgroup, np.concatenate([ha[h], hb[h]]), pts)
     E = ids.reshape(2, -1).T
-    return crossings_per_chart(pts[first], None, E[:, 0], E[:, 1], np.ones(len(E), dtype=bool), pgroup[first],
-                               np.ones(k, dtype=bool), k)
+    return wraps + crossings_per_chart(pts[first], None, E[:, 0], E[:, 1], np.ones(len(E), dtype=bool),
+                                       pgroup[first], np.ones(k, dtype=bool), k)
+
+
+def _new_wraps(topo: Topology, C: np.ndarray, h: np.ndarray, hgroup: np.ndarray, hnew: np.ndarray,
+               border: np.ndarray, k: int) -> np.ndarray:
+    """(k,) border vertices of each union where its border touches itself (:func:`heatparam.metrics.wrapped`), of
+    those where a new face has a corner: the corner angles of every face of the union there, summed per place
+    (corners welded in one chart carry bit-identical UVs)."""
+    ha = topo.ends()[0]  # corner h is at the vertex its half-edge leaves
+    key = hgroup * len(topo.V) + ha[h]
+    near = np.isin(key, unique_ints(key[hnew]))
+    h, hgroup, border = h[near], hgroup[near], border[near]
+    T = np.stack([C[h], C[h - h % 3 + (h % 3 + 1) % 3], C[h - h % 3 + (h % 3 + 2) % 3]], axis=1)
+    ids, first = _places(hgroup, ha[h], C[h])
+    s = np.bincount(ids, weights=corner_angles(T)[:, 0])
+    on_border = np.zeros(len(s), dtype=bool)
+    on_border[ids[border]] = True
+    return np.bincount(hgroup[first][on_border & wrapped(s)], minlength=k)

@@ -300,7 +300,8 @@ class _Moves:
         return iso, area
 
     def _crossings(self, which: np.ndarray) -> np.ndarray:
-        """Crossing pairs of border edges, with a moved face's edge among them, of the new charts ``which``."""
+        """Crossing pairs of border edges, with a moved face's edge among them, and border vertices touching
+        themselves where a moved face has a corner, of the new charts ``which`` (:func:`merge.new_edge_crossings`)."""
         C = self.layouts.uv.copy()
         C[(3 * self.qf[:, None] + np.arange(3)).ravel()] = self.uv[self.Fl].reshape(-1, 2)
         faces = np.concatenate([self.sides[i] for i in which])
@@ -309,9 +310,7 @@ class _Moves:
         hgroup = np.repeat(fgroup, 3)
         moved = np.zeros(len(self.topo.F), dtype=bool)
         moved[self.qf] = True
-        border = ~self.glued[h]
-        return new_edge_crossings(self.topo, C, h[border], hgroup[border], np.repeat(moved[faces], 3)[border],
-                                  len(which))
+        return new_edge_crossings(self.topo, C, h, hgroup, np.repeat(moved[faces], 3), ~self.glued[h], len(which))
 
     def keep(self, ok: np.ndarray) -> None:
         """The layouts of the proposals ``ok`` (per proposal) kept: the moved faces' corners, the new sums."""
