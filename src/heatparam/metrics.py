@@ -61,8 +61,8 @@ _CELL_MAX = 32  # a grid cell with more edges than this is refined (boundary_cro
 _MAX_DEPTH = 4  # refinement levels of the crossing grid
 _REFINE = 4.0  # cell size divisor per refinement level
 _MAX_ENTRIES = 20_000_000  # (edge, cell) entries allowed per refinement level
-# a border vertex whose corner angles sum to within this of 2π (rad) has its border touching itself: summation
-# rounding is ~1e-14, any real gap far larger
+# a border vertex whose corner angles sum to within this of 2π (rad) has its border touching itself (summation
+# rounding is ~1e-14, any real gap far larger)
 WRAP_TOL = 1e-9
 
 
@@ -484,9 +484,10 @@ def boundary_crossings(uv: np.ndarray, F: np.ndarray) -> int:
     predicates. Counted: pairs that cross properly (each segment's endpoints strictly on opposite sides of
     the other) and collinear pairs whose overlap has positive length. Pairs sharing a vertex index are
     skipped, and mere touching (an endpoint exactly on the other segment) is not counted; a boundary vertex
-    where the boundary meets or passes itself (its corner angles sum to 2π or more, :func:`border_wraps`: the
-    two edges leaving it then lie on one ray, or cross) counts as one. A layout whose boundaries do not cross
-    can still overlap only if one chart lies entirely inside another, which this does not detect.
+    where the boundary passes itself (its corner angles sum to more than 2π, :func:`border_wraps`: the two
+    faces at the ends of its fan overlap, which no pair of edges sees, as they share the vertex) counts as one.
+    A layout whose boundaries do not cross can still overlap only if one chart lies entirely inside another,
+    which this does not detect.
 
     Parameters
     ----------
@@ -515,18 +516,20 @@ def corner_angles(T: np.ndarray) -> np.ndarray:
 
 
 def border_wraps(uv: np.ndarray, F: np.ndarray, border: np.ndarray) -> int:
-    """Number of the ``border`` rows (k,) of ``uv`` whose corner angles in ``F`` (m,3) sum to 2π or more (less
-    :data:`WRAP_TOL`): there the border touches or passes itself, a point of the surface on each side of it
-    mapped to one place, which no check of edge pairs sees (the edges share the vertex)."""
+    """Number of the ``border`` rows (k,) of ``uv`` whose corner angles in ``F`` (m,3) sum to more than 2π (by
+    more than :data:`WRAP_TOL`): there the border passes itself, the faces at the two ends of the vertex's fan
+    overlapping. Touching (a sum of 2π: the two border edges on one ray) is not counted, as edges that only touch
+    are not (:func:`wrapped` is the chart checks' stricter test)."""
     if not len(border):
         return 0
     s = np.bincount(F.ravel(), weights=corner_angles(uv[F]).ravel(), minlength=len(uv))
-    return int(np.count_nonzero(wrapped(s[border])))
+    return int(np.count_nonzero(s[border] > 2.0 * np.pi + WRAP_TOL))
 
 
 def wrapped(angle_sum: np.ndarray) -> np.ndarray:
-    """bool per border vertex of its corner angles' sum: 2π or more (less :data:`WRAP_TOL`), the border touching
-    or passing itself there."""
+    """bool per border vertex of a chart, of its corner angles' sum in the layout: 2π or more (less
+    :data:`WRAP_TOL`), the border touching or passing itself there. The atlas refuses both where it chooses charts:
+    a touch is one rounding away from an overlap (packing's translation made one so on a CAD part)."""
     return angle_sum >= 2.0 * np.pi - WRAP_TOL
 
 

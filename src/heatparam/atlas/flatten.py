@@ -147,9 +147,11 @@ def flatten_components(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, k: in
 
 def _wraps(uv: np.ndarray, Fl: np.ndarray, sel: np.ndarray, bv: np.ndarray, vgroup: np.ndarray, k: int
            ) -> np.ndarray:
-    """(k,) per chart its border rows ``bv`` where the border touches itself (:func:`heatparam.metrics.wrapped`,
-    the corner angles of the faces ``sel`` summed): the edge-pair test skips edges that share a vertex."""
-    s = np.bincount(Fl[sel].ravel(), weights=corner_angles(uv[Fl[sel]]).ravel(), minlength=len(uv))
+    """(k,) per chart its border rows ``bv`` where the faces ``sel`` have 2π or more of corner angles: the border
+    touches or passes itself there (:func:`heatparam.metrics.wrapped`), which the edge-pair test skips (the edges
+    share the vertex)."""
+    F = Fl[sel]
+    s = np.bincount(F.ravel(), weights=corner_angles(uv[F]).ravel(), minlength=len(uv))
     return np.bincount(vgroup[bv[wrapped(s[bv])]], minlength=k)
 
 

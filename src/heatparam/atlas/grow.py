@@ -70,6 +70,13 @@ def _first_pick(seed: int, n: int) -> int:
 
 def farthest_seeds(topo: Topology, faces: np.ndarray, k: int, seed: int) -> np.ndarray:
     """k farthest-point seed faces among ``faces`` on the face graph (centroid distances)."""
+    sf, G = _face_graph(topo, faces)
+    first = int(np.searchsorted(sf, faces[_first_pick(seed, len(faces))]))
+    return sf[_farthest(G.indptr.astype(np.int64), G.indices.astype(np.int64), G.data, first, k)]
+
+
+def _face_graph(topo: Topology, faces: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+    """The faces ascending (q,) and their graph (q,q) CSR: faces sharing an edge, at their centroids' distance."""
     sf = np.sort(faces)
     loc = np.full(len(topo.F), -1, dtype=np.int64)
     loc[sf] = np.arange(len(sf))
@@ -81,13 +88,10 @@ def farthest_seeds(topo: Topology, faces: np.ndarray, k: int, seed: int) -> np.n
     C = topo.centroids()
     w = np.linalg.norm(C[sf[f]] - C[sf[g]], axis=1) + 1e-12
     if topo.double_neighbours():  # two faces on two common edges: one entry, the weights summed (as COO → CSR)
-        G = sp.csr_matrix((w, (f, g)), shape=(len(sf), len(sf)))
-    else:  # f ascends (rows in face order): the CSR arrays directly
-        indptr = np.zeros(len(sf) + 1, dtype=np.int32)
-        np.cumsum(np.bincount(f, minlength=len(sf)), out=indptr[1:])
-        G = sp.csr_matrix((w, g.astype(np.int32), indptr), shape=(len(sf), len(sf)))
-    first = int(loc[faces[_first_pick(seed, len(faces))]])
-    return sf[_farthest(G.indptr.astype(np.int64), G.indices.astype(np.int64), G.data, first, k)]
+        return sf, sp.csr_matrix((w, (f, g)), shape=(len(sf), len(sf)))
+    indptr = np.zeros(len(sf) + 1, dtype=np.int32)  # f ascends (rows in face order): the CSR arrays directly
+    np.cumsum(np.bincount(f, minlength=len(sf)), out=indptr[1:])
+    return sf, sp.csr_matrix((w, g.astype(np.int32), indptr), shape=(len(sf), len(sf)))
 
 
 @compiled(_heap_push, _heap_pop)
@@ -247,12 +251,19 @@ def _grow_regions(F, nrm, areas, nb, cross, vf, starts, label, order, seeds, cos
 
 
 def halves(topo: Topology, faces: np.ndarray, glued: np.ndarray, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The chart ``faces`` grown again from two far seeds into two halves, each welded inside: (faces, glued) per
-    half; [] when it will not split."""
-    parts = grow(topo, faces, 179.0, max(1, (len(faces) + 1) // 2), seed)  # two halves
-    if len(parts) < 2:
+    """The chart ``faces`` split between two far seeds (:func:`farthest_seeds`), each face to the nearer on the face
+    graph (ties to the first): two connected halves (a face's shortest path to its seed stays in its half), each
+    welded inside, as (faces, glued) per half; [] when it will not split. (Growing by normals from the two seeds
+    was no split on a flat chart: every face costs nothing to the first seed, which took them all.)"""
+    seeds = farthest_seeds(topo, faces, 2, seed)
+    if len(seeds) < 2:
         return []
-    return [(p, glue_inside(topo, p)) for p in parts]
+    sf, G = _face_graph(topo, faces)
+    dist = [np.full(len(sf), np.inf) for _ in seeds]
+    for s, d in zip(np.searchsorted(sf, seeds), dist, strict=True):
+        _lower(G.indptr.astype(np.int64), G.indices.astype(np.int64), G.data, int(s), d)
+    first = dist[0] <= dist[1]
+    return [(p, glue_inside(topo, p)) for p in (sf[first], sf[~first])]
 
 
 def _smooth(topo: Topology, label: np.ndarray, faces: np.ndarray, passes: int = 3) -> None:

@@ -370,9 +370,9 @@ def new_edge_crossings(topo: Topology, C: np.ndarray, h: np.ndarray, hgroup: np.
 
 def _new_wraps(topo: Topology, C: np.ndarray, h: np.ndarray, hgroup: np.ndarray, hnew: np.ndarray,
                border: np.ndarray, k: int) -> np.ndarray:
-    """(k,) border vertices of each union where its border touches itself (:func:`heatparam.metrics.wrapped`), of
-    those where a new face has a corner: the corner angles of every face of the union there, summed per place
-    (corners welded in one chart carry bit-identical UVs)."""
+    """(k,) border vertices of each union, of those where a new face has a corner, with 2π or more of corner angles:
+    its border touches or passes itself there (:func:`heatparam.metrics.wrapped`). Every face of the union there
+    counts, summed per place (corners welded in one chart carry bit-identical UVs)."""
     ha = topo.ends()[0]  # corner h is at the vertex its half-edge leaves
     key = hgroup * len(topo.V) + ha[h]
     near = np.isin(key, unique_ints(key[hnew]))
