@@ -34,7 +34,7 @@ import numpy as np
 
 from heatparam.errors import MeshError
 from heatparam.mesh.planar import polygon_area, signed_areas
-from heatparam.mesh.topology import DEGENERATE_AREA_REL, boundary_edges, boundary_loops, pairs_in_groups, unique_ints
+from heatparam.mesh.topology import boundary_edges, boundary_loops, pairs_in_groups, unique_ints, zero_area
 
 __all__ = [
     "PerFaceDistortion",
@@ -152,7 +152,7 @@ def face_jacobian_singular_values(
     L2 = x1 * x1 + y1 * y1 + z1 * z1
     dot = x1 * x2 + y1 * y2 + z1 * z2
     longest2 = np.maximum(np.maximum(L2, x2 * x2 + y2 * y2 + z2 * z2), np.einsum("ij,ij->i", e3, e3))
-    degen = nn <= DEGENERATE_AREA_REL * longest2  # also catches longest2 == 0
+    degen = zero_area(nn, longest2, V, F)  # also catches longest2 == 0
 
     q0 = uv[Fuv[:, 0]]
     d1 = uv[Fuv[:, 1]] - q0

@@ -59,16 +59,19 @@ def test_halves_split_a_chart_into_two_welded_disks():
     assert halves(topo, faces[:1], np.zeros(3 * len(F), dtype=bool), 0) == []
 
 
-def test_halves_of_a_flat_chart_are_halves():
-    """A flat chart gives the normals nothing to split on: each face still goes to the nearer of two far seeds, so
-    the halves are connected and of like size (grown by normals one seed took 2008 of 2056 faces; on a CAD part,
-    all of them, and the chart the pipeline refused became one chart per face)."""
+def test_halves_split_where_growing_leaves_one_piece(monkeypatch):
+    """Where growing from the two seeds leaves one piece (on a CAD part's flat chart the first seed took every face,
+    and the chart the pipeline refused became one chart per face), each face goes to the nearer seed on the face
+    graph: two connected halves of like size."""
     import scipy.sparse as sp
     from scipy.sparse.csgraph import connected_components
+
+    import heatparam.atlas.grow as grow_module
 
     s = datasets.flat_square(h=0.05)
     topo = Topology.build(s.V, s.F)
     faces = np.arange(len(s.F))
+    monkeypatch.setattr(grow_module, "grow", lambda topo, faces, *a: [faces])
     parts = halves(topo, faces, np.zeros(3 * len(s.F), dtype=bool), 0)
     assert len(parts) == 2
     assert np.array_equal(np.sort(np.concatenate([p for p, _ in parts])), faces)
@@ -79,6 +82,7 @@ def test_halves_of_a_flat_chart_are_halves():
         loc = np.searchsorted(p, np.stack([inner // 3, topo.opp[inner] // 3]))
         G = sp.coo_matrix((np.ones(len(inner)), (loc[0], loc[1])), shape=(len(p), len(p)))
         assert connected_components(G, directed=False)[0] == 1
+    assert halves(topo, faces[:1], np.zeros(3 * len(s.F), dtype=bool), 0) == []
 
 
 def test_zero_area_faces_grow_into_their_neighbours_regions_even_as_seeds():

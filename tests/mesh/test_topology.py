@@ -107,6 +107,22 @@ def test_degenerate_faces_collinear_and_point_like():
     assert degenerate_faces(V, F).tolist() == [False, True, True, False]  # a sliver of height 1e-9 has an area
 
 
+def test_a_triangle_collinear_in_its_files_decimals_has_zero_area():
+    """Three corners on one line in a file's decimals (a real CAD file's face) read as a triangle whose area is
+    rounding (2 · area 4e-21, above 1e-14 of its squared longest edge): zero area, as the metrics and the atlas then
+    treat it (its UV triangle cannot keep that area once packed). The same face with its middle corner 1e-9 off the
+    line, and a sliver of that height anywhere, keep their area."""
+    from heatparam.mesh.topology import degenerate_faces
+
+    V = np.array([[0.091807, 0.036407, 0.26125], [0.091581, 0.036598, 0.26125], [0.091355, 0.036789, 0.26125]])
+    F = np.array([[0, 1, 2]])
+    assert degenerate_faces(V, F)[0]
+    lifted = V.copy()
+    lifted[1, 0] += 1e-9
+    assert not degenerate_faces(lifted, F)[0]
+    assert not degenerate_faces(lifted + 1e3, F)[0]  # far from the origin: rounding ~1e-16 relative, still a triangle
+
+
 def test_boundary_edges_memo_follows_the_faces_content():
     """Boundary edges are remembered per face content: asked again they are the same; faces changed in place give
     the new mesh's; a returned array is the caller's own."""

@@ -251,10 +251,20 @@ def _grow_regions(F, nrm, areas, nb, cross, vf, starts, label, order, seeds, cos
 
 
 def halves(topo: Topology, faces: np.ndarray, glued: np.ndarray, seed: int) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The chart ``faces`` split between two far seeds (:func:`farthest_seeds`), each face to the nearer on the face
-    graph (ties to the first): two connected halves (a face's shortest path to its seed stays in its half), each
-    welded inside, as (faces, glued) per half; [] when it will not split. (Growing by normals from the two seeds
-    was no split on a flat chart: every face costs nothing to the first seed, which took them all.)"""
+    """The chart ``faces`` grown again from two far seeds into two halves, each welded inside: (faces, glued) per
+    half; [] when it will not split. Where growing leaves one piece (a flat chart: every face costs the first seed
+    nothing, and the second seed's lone face is smoothed into it), each face goes to the nearer seed on the face
+    graph instead (:func:`_nearest_seed_halves`)."""
+    parts = grow(topo, faces, 179.0, max(1, (len(faces) + 1) // 2), seed)  # two halves
+    if len(parts) < 2:
+        parts = _nearest_seed_halves(topo, faces, seed)
+    return [(p, glue_inside(topo, p)) for p in parts]
+
+
+def _nearest_seed_halves(topo: Topology, faces: np.ndarray, seed: int) -> list[np.ndarray]:
+    """``faces`` split between two far seeds (:func:`farthest_seeds`), each face to the nearer on the face graph
+    (ties to the first): two connected halves (a face's shortest path to its seed stays in its half); [] when there
+    is no second seed."""
     seeds = farthest_seeds(topo, faces, 2, seed)
     if len(seeds) < 2:
         return []
@@ -263,7 +273,7 @@ def halves(topo: Topology, faces: np.ndarray, glued: np.ndarray, seed: int) -> l
     for s, d in zip(np.searchsorted(sf, seeds), dist, strict=True):
         _lower(G.indptr.astype(np.int64), G.indices.astype(np.int64), G.data, int(s), d)
     first = dist[0] <= dist[1]
-    return [(p, glue_inside(topo, p)) for p in (sf[first], sf[~first])]
+    return [sf[first], sf[~first]]
 
 
 def _smooth(topo: Topology, label: np.ndarray, faces: np.ndarray, passes: int = 3) -> None:

@@ -14,9 +14,15 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-#: A face is degenerate (zero area) when |2 · area| <= this × (its longest edge)²: scale-free, per face; the
-#: validation's count, the metrics' exclusion and the fill's triangle checks use the same test.
+#: A face is degenerate (zero area) when |2 · area| <= this × (its longest edge)² (scale-free), or within the
+#: rounding of its coordinates (``ROUNDING_AREA``); the validation's count, the metrics' exclusion and the fill's
+#: triangle checks use the same test (:func:`zero_area`).
 DEGENERATE_AREA_REL = 1e-14
+#: ... or when |2 · area| <= this × machine epsilon × (its largest coordinate) × (its longest edge): the area that
+#: rounding its corners to doubles can make or unmake (each coordinate off by half an ulp moves 2 · area by up to
+#: 2√3 of that). Three corners collinear in a file's decimals read as a triangle of that order (laikago's chassis:
+#: 2 · area 4e-21 at edges of 6e-4 and coordinates of 0.26).
+ROUNDING_AREA = 8.0
 
 
 def unique_ints(x: np.ndarray) -> np.ndarray:
@@ -74,10 +80,19 @@ def face_areas(V: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 
 def degenerate_faces(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """(m,) bool: zero-area faces (``DEGENERATE_AREA_REL`` of the squared longest edge; a point-like face too)."""
+    """(m,) bool: zero-area faces (:func:`zero_area`; a point-like face too)."""
     E = V[F[:, [1, 2, 0]]] - V[F]
     longest2 = np.einsum("ijk,ijk->ij", E, E).max(axis=1)
-    return 2 * face_areas(V, F) <= DEGENERATE_AREA_REL * longest2
+    return zero_area(2 * face_areas(V, F), longest2, V, F)
+
+
+def zero_area(area2: np.ndarray, longest2: np.ndarray, V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(m,) bool: faces (``F`` over ``V``) of twice the area ``area2`` (m,) and squared longest edge ``longest2``
+    (m,) that have zero area: ``DEGENERATE_AREA_REL`` of longest2, or within the rounding of their coordinates
+    (``ROUNDING_AREA``)."""
+    coord = np.abs(V[F]).max(axis=(1, 2))
+    rounding = ROUNDING_AREA * np.finfo(np.float64).eps * coord * np.sqrt(longest2)
+    return area2 <= np.maximum(DEGENERATE_AREA_REL * longest2, rounding)
 
 
 def repeated_vertex_faces(F: np.ndarray) -> np.ndarray:

@@ -15,13 +15,13 @@ from scipy.sparse.csgraph import connected_components
 
 from heatparam.errors import MeshError, TopologyError
 from heatparam.mesh.topology import (
-    DEGENERATE_AREA_REL,
     face_areas,
     loop_length,
     loops_outer_first,
     repeated_vertex_faces,
     sort_with_order,
     unique_ints,
+    zero_area,
 )
 
 #: Outer border length² / area below which a surface counts as nearly closed. A flat disk has 4π ≈ 12.6, a
@@ -273,7 +273,7 @@ def _facts(V: np.ndarray, F: np.ndarray, edges: Edges, referenced: np.ndarray, l
         n_faces=len(F),
         referenced=referenced,
         boundary_loops=loops,
-        zero_area_faces=int((2 * areas <= DEGENERATE_AREA_REL * longest2).sum()),
+        zero_area_faces=int(zero_area(2 * areas, longest2, V, F).sum()),
         area=float(areas.sum()),
         mean_edge=float(lengths.mean()),
         max_edge=float(lengths.max()),
