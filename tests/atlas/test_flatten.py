@@ -163,3 +163,28 @@ def test_a_chart_whose_border_touches_itself_is_refused():
             _, iso, flips, cross, disk, _ = flatten_components(V, F, np.zeros(len(F), dtype=np.int64), 1)
             assert disk[0] and flips[0] == 0 and iso[0] < 1.01
             assert (cross[0] == 0) == ok, (sectors, apex)
+
+
+def test_a_chart_with_a_zero_area_face_does_not_mollify_the_others():
+    """Charts flattened together with one that has a zero-area face: only that one is laid out on mollified
+    triangles. Mollified with it, slivers (a CAD part's: edges of 1e-3, a height of 1e-6) came out at iso 10.9."""
+    rng = np.random.default_rng(0)
+    s = datasets.flat_square(h=0.1)
+    V0 = s.V.copy()
+    V0[:, 2] = 0.2 * np.sin(2 * V0[:, 0])
+    Vs, Fs, n = [V0], [s.F], len(V0)
+    for j in range(4):  # slivers, one chart each
+        R = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        Vs.append(np.array([0.26, 0.1 * j, 0.05]) + np.array([[0, 0, 0], [3.5e-3, 0, 0], [8.7e-4, 7e-7, 0]]) @ R.T)
+        Fs.append(np.array([[n, n + 1, n + 2]]))
+        n += 3
+    fgroup = np.r_[np.zeros(len(s.F), dtype=np.int64), np.arange(1, 5)]
+    V, F = np.vstack(Vs), np.vstack(Fs)
+    uv, iso, _, _, _, vgroup = flatten_components(V, F, fgroup, 5)
+    # a chart of two faces, one of zero area (its corners on a line)
+    Vz = np.vstack([V, [[5.0, 0, 0], [6, 0, 0], [5.5, 1, 0], [5.5, 0, 0]]])
+    Fz = np.vstack([F, [[n, n + 3, n + 2], [n, n + 1, n + 3]]])
+    uvz, isoz, flipsz, _, _, _ = flatten_components(Vz, Fz, np.r_[fgroup, 5, 5], 6)
+    np.testing.assert_allclose(isoz[1:5], 1.0, atol=1e-9)
+    np.testing.assert_array_equal(uvz[:n], uv)  # the others as without it
+    assert flipsz[5] == 0 and isoz[5] < 1.05

@@ -120,21 +120,8 @@ def flatten_components(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, k: in
     solve = disk & (p0 >= 0) & (dmax > 0) & (True if want is None else want)
     if not solve.any():
         return uv, iso, flips, cross, disk, vgroup
-    sel = solve[fgroup]
-    try:
-        uv = _lscm(Vl, Fl[sel], p0[solve], p1[solve], None if degenerate is None else bool(degenerate[sel].any()))
-    except HeatparamError:
-        if solve.sum() == 1:
-            return uv, iso, flips, cross, disk, vgroup
-        for i in np.flatnonzero(solve):  # a degenerate chart spoils the shared solve: solve each on its own
-            s_i = fgroup == i
-            try:
-                uv_i = _lscm(Vl, Fl[s_i], p0[i:i + 1], p1[i:i + 1])
-            except HeatparamError:
-                solve[i] = False
-                continue
-            uv[vgroup == i] = uv_i[vgroup == i]
-        sel = solve[fgroup]
+    uv = _layouts(Vl, Fl, fgroup, vgroup, solve, p0, p1,
+                  degenerate_faces(Vl, Fl) if degenerate is None else degenerate)
     _true_area(Vl, Fl, uv, fgroup, vgroup, k)
     mean, flips = chart_iso(Vl, Fl, uv, fgroup, k)
     finite = np.bincount(fgroup, weights=~np.isfinite(uv[Fl]).all(axis=(1, 2)), minlength=k) == 0
@@ -143,6 +130,34 @@ def flatten_components(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, k: in
     cross[check] = crossings_per_chart(uv, Fl, a, b, bd, vgroup, check, k) + _wraps(uv, Fl, check[fgroup], bv,
                                                                                     vgroup, k)[check]
     return uv, iso, flips, cross, disk, vgroup
+
+
+def _layouts(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, vgroup: np.ndarray, solve: np.ndarray,
+             p0: np.ndarray, p1: np.ndarray, degenerate: np.ndarray) -> np.ndarray:
+    """(n,2) the LSCM layouts of the charts ``solve`` (k,) bool, pinned at p0 and p1 (k,), in two shared solves:
+    the charts without a zero-area face (``degenerate`` (m,)) by igl's LSCM, the others on mollified triangles
+    (:func:`lscm`; mollified with them, a CAD part's slivers came out at iso 7-41). A chart whose solve fails is
+    taken out of ``solve`` (in place); its rows stay 0."""
+    uv = np.zeros((len(Vl), 2))
+    zero = np.bincount(fgroup, weights=degenerate, minlength=len(solve)) > 0
+    for part, mollify in ((solve & ~zero, False), (solve & zero, True)):
+        if not part.any():
+            continue
+        sel = part[fgroup]
+        try:
+            res = _lscm(Vl, Fl[sel], p0[part], p1[part], mollify)
+        except HeatparamError:  # one chart spoils the shared solve: each on its own
+            for i in np.flatnonzero(part):
+                try:
+                    res_i = _lscm(Vl, Fl[fgroup == i], p0[i:i + 1], p1[i:i + 1], mollify)
+                except HeatparamError:
+                    solve[i] = False
+                    continue
+                uv[vgroup == i] = res_i[vgroup == i]
+            continue
+        rows = part[np.maximum(vgroup, 0)] & (vgroup >= 0)
+        uv[rows] = res[rows]
+    return uv
 
 
 def _wraps(uv: np.ndarray, Fl: np.ndarray, sel: np.ndarray, bv: np.ndarray, vgroup: np.ndarray, k: int
