@@ -11,6 +11,7 @@ from heatparam.atlas.flatten import (
     flatten_charts,
     flatten_components,
     lscm,
+    lscm_groups,
     quick_flatten,
     segment_layout,
     triangle_layout,
@@ -188,3 +189,18 @@ def test_a_chart_with_a_zero_area_face_does_not_mollify_the_others():
     np.testing.assert_allclose(isoz[1:5], 1.0, atol=1e-9)
     np.testing.assert_array_equal(uvz[:n], uv)  # the others as without it
     assert flipsz[5] == 0 and isoz[5] < 1.05
+
+
+def test_pinned_groups_with_a_zero_area_face_are_solved_apart():
+    """The merges' and the straightening's extensions (several small charts pinned in one solve): a group with a
+    zero-area face is laid out on mollified triangles apart, the others exactly as without it."""
+    V = np.array([[0.0, 0, 0], [3.5e-3, 0, 0], [8.7e-4, 7e-7, 0],  # a sliver, pinned on its long edge
+                  [5.0, 0, 0], [6, 0, 0], [5.5, 1, 0], [5.5, 0, 0]])  # a face and a zero-area face
+    F = np.array([[0, 1, 2], [3, 6, 5], [3, 4, 6]])
+    b, bc = np.array([0, 1, 3, 4]), np.array([[0.0, 0], [3.5e-3, 0], [5, 0], [6, 0]])
+    uv = lscm_groups(V, F, np.array([0, 1, 1]), b, bc, np.array([False, False, True]))
+    alone = lscm_groups(V[:3], F[:1], np.array([0]), b[:2], bc[:2], np.array([False]))
+    np.testing.assert_array_equal(uv[:3], alone)
+    np.testing.assert_allclose(uv[2], V[2, :2], atol=1e-12)  # the sliver exact
+    mollified = lscm(V, F, b, bc, degenerate=True)  # all in one mollified solve: the sliver strays
+    assert np.abs(mollified[2] - V[2, :2]).max() > 1e-7

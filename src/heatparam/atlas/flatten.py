@@ -22,7 +22,7 @@ from heatparam.metrics import corner_angles, crossing_pairs, true_scale_iso, wra
 from heatparam.refine.energy import surface_gradients
 
 __all__ = ["Flattenings", "chart_iso", "crossings_per_chart", "flatten_charts", "flatten_components", "lscm",
-           "quick_flatten", "segment_layout", "triangle_layout"]
+           "lscm_groups", "quick_flatten", "segment_layout", "triangle_layout"]
 
 
 def chart_iso(V: np.ndarray, F: np.ndarray, uv: np.ndarray, fgroup: np.ndarray, k: int
@@ -211,6 +211,26 @@ def _lscm(Vl: np.ndarray, Fl: np.ndarray, p0: np.ndarray, p1: np.ndarray, degene
     uv[used] = res
     if not np.isfinite(uv).all():
         raise HeatparamError("non-finite LSCM layout")
+    return uv
+
+
+def lscm_groups(V: np.ndarray, F: np.ndarray, fgroup: np.ndarray, b: np.ndarray, bc: np.ndarray, zero: np.ndarray
+                ) -> np.ndarray:
+    """:func:`lscm` of (V, F) with the rows ``b`` pinned at ``bc`` (k,2), whose faces fall in groups ``fgroup`` (m,)
+    that share no row (charts side by side, each pinned): the groups with a zero-area face (``zero`` (m,) bool) on
+    mollified triangles, in a solve apart from the others (mollified with them, a CAD part's slivers came out at iso
+    7-41). (n,2), rows no face uses at 0; raises as :func:`lscm` does."""
+    has_zero = np.zeros(int(fgroup.max()) + 1 if len(fgroup) else 0, dtype=bool)
+    has_zero[fgroup[zero]] = True
+    uv = np.zeros((len(V), 2))
+    for part, mollify in ((~has_zero[fgroup], False), (has_zero[fgroup], True)):
+        if not part.any():
+            continue
+        used = unique_ints(F[part])
+        loc = np.full(len(V), -1, dtype=np.int64)
+        loc[used] = np.arange(len(used))
+        pinned = loc[b] >= 0
+        uv[used] = lscm(V[used], loc[F[part]], loc[b[pinned]], bc[pinned], mollify)
     return uv
 
 

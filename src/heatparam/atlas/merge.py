@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from heatparam.atlas.chart_topology import Topology, chart_mesh
-from heatparam.atlas.flatten import Flattenings, crossings_per_chart, flatten_charts, lscm
+from heatparam.atlas.flatten import Flattenings, crossings_per_chart, flatten_charts, lscm_groups
 from heatparam.atlas.stretches import border_stretches, half_path
 from heatparam.mesh.topology import unique_ints, unique_inverse
 from heatparam.metrics import corner_angles, true_scale_iso, wrapped
@@ -208,7 +208,7 @@ class Merging:
         k = len(picked)
         ok = np.zeros(k, dtype=bool)
         try:
-            uv = lscm(ext.Vl, ext.Fl, ext.rows, ext.vals, bool(self.topo.degenerate[ext.qf].any()))
+            uv = lscm_groups(ext.Vl, ext.Fl, ext.grp, ext.rows, ext.vals, self.topo.degenerate[ext.qf])
         except (RuntimeError, ValueError):
             return ok, np.ones(k, dtype=bool)  # one degenerate chart spoils the shared solve: each union whole
         if not np.isfinite(uv).all():

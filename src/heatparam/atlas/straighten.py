@@ -22,7 +22,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from heatparam.atlas.chart_topology import Topology, chart_mesh
-from heatparam.atlas.flatten import lscm
+from heatparam.atlas.flatten import lscm_groups
 from heatparam.atlas.grow import dijkstra
 from heatparam.atlas.merge import Layouts, extension_sums, neighbour_pins, new_edge_crossings
 from heatparam.mesh.topology import edge_graph
@@ -265,7 +265,7 @@ class _Moves:
                                     self.layouts.uv)
         rows, first = np.unique(rows, return_index=True)
         try:
-            uv = lscm(self.Vl, self.Fl, rows, vals[first], bool(self.topo.degenerate[self.qf].any()))
+            uv = lscm_groups(self.Vl, self.Fl, self.grp, rows, vals[first], self.topo.degenerate[self.qf])
         except (RuntimeError, ValueError):
             return None
         return uv if np.isfinite(uv).all() else None
