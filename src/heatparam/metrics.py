@@ -38,6 +38,7 @@ from heatparam.mesh.topology import boundary_edges, boundary_loops, pairs_in_gro
 
 __all__ = [
     "PerFaceDistortion",
+    "angle_sums",
     "border_wraps",
     "boundary_crossings",
     "corner_angles",
@@ -522,8 +523,13 @@ def border_wraps(uv: np.ndarray, F: np.ndarray, border: np.ndarray) -> int:
     are not (:func:`wrapped` is the chart checks' stricter test)."""
     if not len(border):
         return 0
-    s = np.bincount(F.ravel(), weights=corner_angles(uv[F]).ravel(), minlength=len(uv))
-    return int(np.count_nonzero(s[border] > 2.0 * np.pi + WRAP_TOL))
+    return int(np.count_nonzero(angle_sums(uv, F)[border] > 2.0 * np.pi + WRAP_TOL))
+
+
+def angle_sums(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """(n_uv,) per row of ``uv`` the sum of the signed corner angles of the faces ``F`` (m,3) there
+    (:func:`corner_angles`): 2π inside a flip-free layout."""
+    return np.bincount(F.ravel(), weights=corner_angles(uv[F]).ravel(), minlength=len(uv))
 
 
 def wrapped(angle_sum: np.ndarray) -> np.ndarray:

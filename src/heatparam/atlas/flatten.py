@@ -18,7 +18,7 @@ import scipy.sparse.linalg as spla
 from heatparam.atlas.chart_topology import Topology, chart_mesh
 from heatparam.errors import HeatparamError
 from heatparam.mesh.topology import degenerate_faces, unique_ints
-from heatparam.metrics import corner_angles, crossing_pairs, true_scale_iso, wrapped
+from heatparam.metrics import angle_sums, crossing_pairs, true_scale_iso, wrapped
 from heatparam.refine.energy import surface_gradients
 
 __all__ = ["Flattenings", "chart_iso", "crossings_per_chart", "flatten_charts", "flatten_components", "lscm",
@@ -134,30 +134,23 @@ def flatten_components(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, k: in
 
 def _layouts(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, vgroup: np.ndarray, solve: np.ndarray,
              p0: np.ndarray, p1: np.ndarray, degenerate: np.ndarray) -> np.ndarray:
-    """(n,2) the LSCM layouts of the charts ``solve`` (k,) bool, pinned at p0 and p1 (k,), in two shared solves:
-    the charts without a zero-area face (``degenerate`` (m,)) by igl's LSCM, the others on mollified triangles
-    (:func:`lscm`; mollified with them, a CAD part's slivers came out at iso 7-41). A chart whose solve fails is
-    taken out of ``solve`` (in place); its rows stay 0."""
-    uv = np.zeros((len(Vl), 2))
-    zero = np.bincount(fgroup, weights=degenerate, minlength=len(solve)) > 0
-    for part, mollify in ((solve & ~zero, False), (solve & zero, True)):
-        if not part.any():
-            continue
-        sel = part[fgroup]
-        try:
-            res = _lscm(Vl, Fl[sel], p0[part], p1[part], mollify)
-        except HeatparamError:  # one chart spoils the shared solve: each on its own
-            for i in np.flatnonzero(part):
-                try:
-                    res_i = _lscm(Vl, Fl[fgroup == i], p0[i:i + 1], p1[i:i + 1], mollify)
-                except HeatparamError:
-                    solve[i] = False
-                    continue
-                uv[vgroup == i] = res_i[vgroup == i]
-            continue
-        rows = part[np.maximum(vgroup, 0)] & (vgroup >= 0)
-        uv[rows] = res[rows]
-    return uv
+    """(n,2) the LSCM layouts of the charts ``solve`` (k,) bool, pinned at p0 and p1 (k,) (:func:`_lscm`: the
+    charts with a zero-area face, ``degenerate`` (m,), mollified apart). Where a shared solve fails, each chart is
+    solved on its own, and one whose solve fails is taken out of ``solve`` (in place), its rows left at 0."""
+    sel = solve[fgroup]
+    try:
+        return _lscm(Vl, Fl[sel], fgroup[sel], p0[solve], p1[solve], degenerate[sel])
+    except HeatparamError:  # one chart spoils a shared solve: each on its own
+        uv = np.zeros((len(Vl), 2))
+        for i in np.flatnonzero(solve):
+            s_i = fgroup == i
+            try:
+                res = _lscm(Vl, Fl[s_i], fgroup[s_i], p0[i:i + 1], p1[i:i + 1], degenerate[s_i])
+            except HeatparamError:
+                solve[i] = False
+                continue
+            uv[vgroup == i] = res[vgroup == i]
+        return uv
 
 
 def _wraps(uv: np.ndarray, Fl: np.ndarray, sel: np.ndarray, bv: np.ndarray, vgroup: np.ndarray, k: int
@@ -165,9 +158,7 @@ def _wraps(uv: np.ndarray, Fl: np.ndarray, sel: np.ndarray, bv: np.ndarray, vgro
     """(k,) per chart its border rows ``bv`` where the faces ``sel`` have 2π or more of corner angles: the border
     touches or passes itself there (:func:`heatparam.metrics.wrapped`), which the edge-pair test skips (the edges
     share the vertex)."""
-    F = Fl[sel]
-    s = np.bincount(F.ravel(), weights=corner_angles(uv[F]).ravel(), minlength=len(uv))
-    return np.bincount(vgroup[bv[wrapped(s[bv])]], minlength=k)
+    return np.bincount(vgroup[bv[wrapped(angle_sums(uv, Fl[sel])[bv])]], minlength=k)
 
 
 def _first_per_group(rows: np.ndarray, grp: np.ndarray, key: np.ndarray, k: int) -> np.ndarray:
@@ -192,23 +183,17 @@ def _farthest_per_group(V, rows, grp, src, key, k) -> tuple[np.ndarray, np.ndarr
     return out, dist
 
 
-def _lscm(Vl: np.ndarray, Fl: np.ndarray, p0: np.ndarray, p1: np.ndarray, degenerate: bool | None = None
+def _lscm(Vl: np.ndarray, Fl: np.ndarray, fgroup: np.ndarray, p0: np.ndarray, p1: np.ndarray, zero: np.ndarray
           ) -> np.ndarray:
-    """LSCM (``igl.lscm``: faster than a PARDISO LSCM on cow's charts, the same map to 5e-12) of the faces ``Fl``
-    with the pins p0 at (0,0) and p1 at (1,0); rows no face uses stay at 0. ``degenerate``: as :func:`lscm`'s."""
-    mark = np.zeros(len(Vl), dtype=bool)
-    mark[Fl.ravel()] = True
-    used = np.flatnonzero(mark)
-    loc = np.full(len(Vl), -1, dtype=np.int64)
-    loc[used] = np.arange(len(used))
+    """LSCM (``igl.lscm``: faster than a PARDISO LSCM on cow's charts, the same map to 5e-12) of the charts' faces
+    ``Fl`` (chart ``fgroup`` (m,), zero-area ``zero`` (m,): :func:`lscm_groups`), each with its pin p0 at (0,0) and
+    p1 at (1,0); rows no face uses stay at 0. Raises HeatparamError where it fails or is not finite."""
     puv = np.zeros((len(p0) + len(p1), 2))
     puv[len(p0):, 0] = 1.0
     try:
-        res = lscm(Vl[used], loc[Fl], loc[np.concatenate([p0, p1])], puv, degenerate)
+        uv = lscm_groups(Vl, Fl, fgroup, np.concatenate([p0, p1]), puv, zero)
     except (RuntimeError, ValueError) as exc:
         raise HeatparamError(f"LSCM failed: {exc}") from None
-    uv = np.zeros((len(Vl), 2))
-    uv[used] = res
     if not np.isfinite(uv).all():
         raise HeatparamError("non-finite LSCM layout")
     return uv

@@ -71,12 +71,17 @@ def _first_pick(seed: int, n: int) -> int:
 def farthest_seeds(topo: Topology, faces: np.ndarray, k: int, seed: int) -> np.ndarray:
     """k farthest-point seed faces among ``faces`` on the face graph (centroid distances)."""
     sf, G = _face_graph(topo, faces)
-    first = int(np.searchsorted(sf, faces[_first_pick(seed, len(faces))]))
-    return sf[_farthest(G.indptr.astype(np.int64), G.indices.astype(np.int64), G.data, first, k)]
+    return sf[_seed_rows(sf, G, faces, k, seed)]
 
 
-def _face_graph(topo: Topology, faces: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
-    """The faces ascending (q,) and their graph (q,q) CSR: faces sharing an edge, at their centroids' distance."""
+def _seed_rows(sf: np.ndarray, G: tuple, faces: np.ndarray, k: int, seed: int) -> np.ndarray:
+    """:func:`farthest_seeds` as rows of the face graph ``G`` (:func:`_face_graph`) of the faces ``sf``."""
+    return _farthest(*G, int(np.searchsorted(sf, faces[_first_pick(seed, len(faces))])), k)
+
+
+def _face_graph(topo: Topology, faces: np.ndarray) -> tuple[np.ndarray, tuple]:
+    """The faces ascending (q,) and their graph: faces sharing an edge, at their centroids' distance, as the CSR
+    arrays the compiled loops read (indptr (q+1,) and indices int64, lengths float64)."""
     sf = np.sort(faces)
     loc = np.full(len(topo.F), -1, dtype=np.int64)
     loc[sf] = np.arange(len(sf))
@@ -88,10 +93,12 @@ def _face_graph(topo: Topology, faces: np.ndarray) -> tuple[np.ndarray, sp.csr_m
     C = topo.centroids()
     w = np.linalg.norm(C[sf[f]] - C[sf[g]], axis=1) + 1e-12
     if topo.double_neighbours():  # two faces on two common edges: one entry, the weights summed (as COO → CSR)
-        return sf, sp.csr_matrix((w, (f, g)), shape=(len(sf), len(sf)))
-    indptr = np.zeros(len(sf) + 1, dtype=np.int32)  # f ascends (rows in face order): the CSR arrays directly
-    np.cumsum(np.bincount(f, minlength=len(sf)), out=indptr[1:])
-    return sf, sp.csr_matrix((w, g.astype(np.int32), indptr), shape=(len(sf), len(sf)))
+        G = sp.csr_matrix((w, (f, g)), shape=(len(sf), len(sf)))
+    else:  # f ascends (rows in face order): the CSR arrays directly
+        indptr = np.zeros(len(sf) + 1, dtype=np.int32)
+        np.cumsum(np.bincount(f, minlength=len(sf)), out=indptr[1:])
+        G = sp.csr_matrix((w, g.astype(np.int32), indptr), shape=(len(sf), len(sf)))
+    return sf, (G.indptr.astype(np.int64), G.indices.astype(np.int64), G.data)
 
 
 @compiled(_heap_push, _heap_pop)
@@ -265,13 +272,13 @@ def _nearest_seed_halves(topo: Topology, faces: np.ndarray, seed: int) -> list[n
     """``faces`` split between two far seeds (:func:`farthest_seeds`), each face to the nearer on the face graph
     (ties to the first): two connected halves (a face's shortest path to its seed stays in its half); [] when there
     is no second seed."""
-    seeds = farthest_seeds(topo, faces, 2, seed)
+    sf, G = _face_graph(topo, faces)
+    seeds = _seed_rows(sf, G, faces, 2, seed)
     if len(seeds) < 2:
         return []
-    sf, G = _face_graph(topo, faces)
     dist = [np.full(len(sf), np.inf) for _ in seeds]
-    for s, d in zip(np.searchsorted(sf, seeds), dist, strict=True):
-        _lower(G.indptr.astype(np.int64), G.indices.astype(np.int64), G.data, int(s), d)
+    for s, d in zip(seeds, dist, strict=True):
+        _lower(*G, int(s), d)
     first = dist[0] <= dist[1]
     return [sf[first], sf[~first]]
 
