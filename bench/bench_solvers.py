@@ -7,7 +7,11 @@ scikit-sparse is importable (it needs SuiteSparse headers to build; it is not a 
 Second table: heat-method geodesic time per source on beetle.off by batch width (``heat.MAX_BLOCK``, columns
 per multi-column solve), the runs interleaved and repeated (median [min-max]), to choose MAX_BLOCK.
 
-Run: python bench/bench_solvers.py [--target 45000] [--blocks 8 16 32 64] [--repeats 5]
+``--conformal``: instead, the spectral conformal layout (``layout.conformal.spectral_conformal``: one factorization
+of Q + εB, 2 unknowns per vertex, and its Krylov solves) with each backend on ``datasets.cylinder_with_holes`` from
+10k to 330k vertices, the runs interleaved and repeated (median), to choose ``conformal.SCP_PARDISO_MIN_UNKNOWNS``.
+
+Run: python bench/bench_solvers.py [--target 45000] [--blocks 8 16 32 64] [--repeats 5] [--conformal]
 """
 
 from __future__ import annotations
@@ -34,7 +38,11 @@ def main() -> None:
     ap.add_argument("--blocks", type=int, nargs="*", default=[8, 16, 32, 64])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--block-mesh", default=str(SHARED / "beetle.off"))
+    ap.add_argument("--conformal", action="store_true", help="the conformal layout's time by backend and size")
     args = ap.parse_args()
+    if args.conformal:
+        conformal_table(min(args.repeats, 3))
+        return
     V, F = upsampled_camelhead(args.target)
     op = build_operators(V, F)
     heat = (time_step(op) * op.L + op.B).tocsc()
@@ -85,6 +93,27 @@ def block_table(mesh: str, blocks: list[int], repeats: int, sources: int = 256) 
     print("|---|---|---|---|")
     for b in blocks:
         print(f"| {b} | {np.median(per[b]):.2f} | {min(per[b]):.2f} | {max(per[b]):.2f} |")
+
+
+def conformal_table(repeats: int) -> None:
+    """The spectral conformal layout's seconds with CHOLMOD (cholespy) and PARDISO, by mesh size."""
+    from heatparam import datasets
+    from heatparam.layout.conformal import spectral_conformal
+
+    print(f"# The conformal layout by backend — {datetime.date.today()} — {machine()}\n")
+    print(f"datasets.cylinder_with_holes(h), spectral_conformal (krylov), median of {repeats} interleaved runs\n")
+    print("| vertices | unknowns | solves | cholespy s | pardiso s | cholespy / pardiso |")
+    print("|---|---|---|---|---|---|")
+    for h in (0.06, 0.03, 0.02, 0.016, 0.013, 0.011, 0.008, 0.006, 0.0042, 0.0035):
+        s = datasets.cylinder_with_holes(h=h)
+        secs: dict[str, list[float]] = {"cholespy": [], "pardiso": []}
+        for _ in range(repeats):
+            for backend in secs:
+                t0 = time.perf_counter()
+                _, solves = spectral_conformal(s.V, s.F, backend)
+                secs[backend].append(time.perf_counter() - t0)
+        c, p = (float(np.median(secs[b])) for b in ("cholespy", "pardiso"))
+        print(f"| {len(s.V)} | {2 * len(s.V)} | {solves} | {c:.3f} | {p:.3f} | {c / p:.2f} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -8,7 +8,7 @@ Backends (``backend=``):
   platforms): faster factorizations, a numerical refactorization that reuses the symbolic analysis
   (:meth:`Factor.refactor`), and, with MKL's iterative refinement switched off, solves as fast as CHOLMOD's.
   :func:`large_system_backend` picks it per use by measurement: the polish's Hessians at every size, the
-  heat-method systems from 100k vertices, the conformal layouts from 200k unknowns. Large systems it orders
+  heat-method systems from 100k vertices, the conformal layouts from 20k unknowns. Large systems it orders
   itself get its improved two-level factorization, each factor's first solve checked
   (:data:`TWO_LEVEL_MIN_UNKNOWNS`).
 
@@ -39,7 +39,7 @@ def available_backends() -> list[str]:
 
 #: Default threshold of :func:`large_system_backend`: systems of at least this many unknowns use PARDISO when it is
 #: installed and the backend is ``auto`` (a 196k-vertex cylinder patch's LSCM solve 1.7 s vs 10.0 s for igl.lscm;
-#: BENCHMARKS.md §4).
+#: BENCHMARKS.md §4). The uses measured apart pass their own (the heat method, the polish, the conformal layout).
 PARDISO_MIN_UNKNOWNS = 200_000
 
 

@@ -77,6 +77,9 @@ SCP_MAX_ITERS = 60
 SCP_CUT_MAX_ITERS = 20
 #: ... with Q + SCP_SHIFT·(mean diagonal of Q / mean boundary mass)·B factorized (Q itself is singular)
 SCP_SHIFT = 1e-8
+#: Q + εB is factorized by PARDISO from this many unknowns (2 per vertex) when it is installed: at least as fast
+#: from 20k unknowns at every size measured, 1.5× at 49k, 2.3× at 226k (BENCHMARKS.md, "Sparse backends")
+SCP_PARDISO_MIN_UNKNOWNS = 20_000
 #: ``krylov``: the most basis vectors kept (two per solve); then it restarts from its two lowest Ritz pairs
 SCP_BASIS = 24
 #: ``method`` of :func:`spectral_conformal`
@@ -159,7 +162,7 @@ def _shifted_factor(Q: sp.csc_matrix, b: np.ndarray, backend: str):
 
     eps = SCP_SHIFT * float(np.abs(Q.diagonal()).mean()) / float(b[b > 0].mean())
     try:
-        return Factor((Q + sp.diags(eps * b)).tocsc(), large_system_backend(len(b), backend))
+        return Factor((Q + sp.diags(eps * b)).tocsc(), large_system_backend(len(b), backend, SCP_PARDISO_MIN_UNKNOWNS))
     except (ValueError, RuntimeError) as exc:  # not positive definite: degenerate faces, several components
         raise HeatparamError(f"the conformal layout failed ({exc}): is the mesh degenerate?") from exc
 
