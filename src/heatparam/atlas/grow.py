@@ -94,11 +94,10 @@ def _face_graph(topo: Topology, faces: np.ndarray) -> tuple[np.ndarray, tuple]:
     w = np.linalg.norm(C[sf[f]] - C[sf[g]], axis=1) + 1e-12
     if topo.double_neighbours():  # two faces on two common edges: one entry, the weights summed (as COO → CSR)
         G = sp.csr_matrix((w, (f, g)), shape=(len(sf), len(sf)))
-    else:  # f ascends (rows in face order): the CSR arrays directly
-        indptr = np.zeros(len(sf) + 1, dtype=np.int32)
-        np.cumsum(np.bincount(f, minlength=len(sf)), out=indptr[1:])
-        G = sp.csr_matrix((w, g.astype(np.int32), indptr), shape=(len(sf), len(sf)))
-    return sf, (G.indptr.astype(np.int64), G.indices.astype(np.int64), G.data)
+        return sf, (G.indptr.astype(np.int64), G.indices.astype(np.int64), G.data)
+    indptr = np.zeros(len(sf) + 1, dtype=np.int64)  # f ascends (rows in face order): the CSR arrays directly
+    np.cumsum(np.bincount(f, minlength=len(sf)), out=indptr[1:])
+    return sf, (indptr, g, w)
 
 
 @compiled(_heap_push, _heap_pop)
