@@ -25,7 +25,7 @@ def test_a_compiled_loop_calls_the_compiled_loops_it_names():
 
 
 def test_importing_the_compiled_loops_loads_no_numba():
-    code = ("import sys, heatparam.atlas.grow, heatparam.atlas.overlap, heatparam.mesh.nest; "
+    code = ("import sys, heatparam.atlas.grow, heatparam.atlas.overlap, heatparam.mesh.nest, heatparam.refine.energy; "
             "print('numba' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"

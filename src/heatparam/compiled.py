@@ -17,10 +17,11 @@ _LOOPS: list = []
 
 
 class Compiled:
-    """``fn`` compiled with ``numba.njit(cache=True)`` at its first call; ``calls``: the compiled functions it calls."""
+    """``fn`` compiled with ``numba.njit(cache=True, **options)`` at its first call; ``calls``: the compiled functions
+    it calls."""
 
-    def __init__(self, fn, calls: tuple[Compiled, ...] = ()):
-        self.fn, self.calls, self._compiled = fn, calls, None
+    def __init__(self, fn, calls: tuple[Compiled, ...] = (), options: dict | None = None):
+        self.fn, self.calls, self.options, self._compiled = fn, calls, dict(options or {}), None
         _LOOPS.append(self)
 
     @property
@@ -37,16 +38,17 @@ class Compiled:
             if self.calls:  # numba reads the callees from the function's globals: the compiled ones there
                 env = {**fn.__globals__, **{c.fn.__name__: c.dispatcher() for c in self.calls}}
                 fn = types.FunctionType(fn.__code__, env, fn.__name__, fn.__defaults__, fn.__closure__)
-            self._compiled = njit(cache=True)(fn)
+            self._compiled = njit(cache=True, **self.options)(fn)
         return self._compiled
 
     def __call__(self, *args):
         return self.dispatcher()(*args)
 
 
-def compiled(*calls: Compiled):
-    """Decorator: ``@compiled()`` or ``@compiled(callee, ...)`` makes a :class:`Compiled`."""
-    return lambda fn: Compiled(fn, calls)
+def compiled(*calls: Compiled, **options):
+    """Decorator: ``@compiled()`` or ``@compiled(callee, ..., option=value)`` makes a :class:`Compiled` (``options``:
+    numba's, e.g. ``error_model="numpy"``)."""
+    return lambda fn: Compiled(fn, calls, options)
 
 
 def warmup(fn):

@@ -1,0 +1,45 @@
+"""The symmetric Dirichlet energy's building blocks (``refine.energy``): the per-face Jacobians."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from heatparam.refine import energy
+
+
+def test_jacobians_from_the_compiled_loop_match_numpys_products():
+    """``energy.jacobians`` runs a compiled loop from ``COMPILED_MIN_FACES`` faces: the same Jacobians as the
+    batched products below it, to rounding, for int32 and int64 faces."""
+    rng = np.random.default_rng(5)
+    m = energy.COMPILED_MIN_FACES
+    uv, g = rng.standard_normal((m // 2, 2)), rng.standard_normal((m, 3, 2))
+    F = rng.integers(0, m // 2, (m, 3))
+    ref = np.matmul(uv[F].transpose(0, 2, 1), g)
+    for faces in (F, F.astype(np.int32)):
+        np.testing.assert_allclose(energy.jacobians(uv, faces, g), ref, rtol=0, atol=1e-13)
+    np.testing.assert_array_equal(energy.jacobians(uv, F[:-1], g[:-1]), ref[:-1])  # below it: numpy's own
+
+
+def test_a_small_disk_is_flattened_without_numba():
+    """Below ``COMPILED_MIN_FACES`` a disk's pipeline never imports numba (0.1-0.5 s a process)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, heatparam\nfrom heatparam import datasets\ns = datasets.cylinder_patch(h=0.1)\n"
+            "heatparam.parameterize(s.V, s.F)\nprint('numba' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_newton_entries_from_the_compiled_loop_match_numpys():
+    """``energy.sd_newton_entries`` from ``COMPILED_MIN_FACES`` faces: the compiled loop gives the gradient and the
+    21 Hessian entries of the numpy passes below it (flipped faces included, whose flip eigenvalue is clamped)."""
+    rng = np.random.default_rng(6)
+    m = energy.COMPILED_MIN_FACES
+    J = np.eye(2)[None] + 0.4 * rng.standard_normal((m, 2, 2))
+    g, w = rng.standard_normal((m, 3, 2)), rng.uniform(0.5, 1.5, m)
+    assert (energy.det(J) < 0).any()
+    grad, out = energy.sd_newton_entries(J, g, w)
+    grad0, out0 = energy.sd_newton_entries(J[:-1], g[:-1], w[:-1])  # below it: numpy's passes
+    np.testing.assert_allclose(grad[:-1], grad0, rtol=1e-13, atol=1e-13 * np.abs(grad0).max())
+    np.testing.assert_allclose(out[:, :-1], out0, rtol=1e-13, atol=1e-13 * np.abs(out0).max())
