@@ -36,4 +36,3 @@ def test_polish_of_a_start_with_a_nearly_degenerate_triangle_doubles_its_step_on
     assert rep["energy_end"] < 1 + 1e-6  # the isometry, to the tolerance
     assert rep["iterations"] <= 8
     assert (energy.det(energy.jacobians(x, F, g)) > 0).all()
-
