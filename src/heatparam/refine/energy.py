@@ -31,7 +31,7 @@ def hat_gradients(P: np.ndarray) -> np.ndarray:
 #: at 235k faces numpy's batched (2,3) @ (3,2) products took 33 ms against the loop's 2.3 ms, and the entries 91
 #: against 27 ms; a held-out part of 235k faces spent 2.0 s of 21 s in Jacobians (479 calls), 0.8 s compiled. Below
 #: it, numba's import and cache load (0.1-0.5 s, once per process) would not pay off. The Jacobians agree to
-#: rounding (1.8e-15 there), the entries exactly.
+#: rounding (1.8e-15 there), the entries bit for bit on this machine.
 COMPILED_MIN_FACES = 20_000
 
 
@@ -54,12 +54,6 @@ def _jacobian_loop(uv, F, g, J):  # pragma: no cover - compiled
             for s in range(2):
                 J[f, r, s] = uv[a, r] * g[f, 0, s] + uv[b, r] * g[f, 1, s] + uv[c, r] * g[f, 2, s]
 
-
-@warmup
-def _warm() -> None:
-    """The compiled loops run once on one triangle (:func:`heatparam.compiled.warm_all`)."""
-    _jacobian_loop(np.eye(3, 2), np.array([[0, 1, 2]]), np.ones((1, 3, 2)), np.empty((1, 2, 2)))
-    _entries_loop(np.eye(2)[None], np.ones((1, 3, 2)), np.ones(1), np.empty((1, 2, 2)), np.empty((21, 1)))
 
 def det(J: np.ndarray) -> np.ndarray:
     return J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
@@ -183,7 +177,8 @@ ENTRY_CHUNK = 8192
 def sd_newton_entries(J: np.ndarray, g: np.ndarray, w: np.ndarray, chunk: int = ENTRY_CHUNK
                       ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`sd_newton_blocks` as the 21 distinct entries of each symmetric block (``BLOCK_ENTRIES``), in closed
-    form, ``chunk`` faces at a time: dE/dJ (m,2,2) and the entries (21, m).
+    form, ``chunk`` faces at a time (from ``COMPILED_MIN_FACES`` faces, one compiled loop over all): dE/dJ (m,2,2)
+    and the entries (21, m).
 
     With J = U diag(σ) Vᵀ, U = rot(θ_U) (columns u₁, u₂), V = rot(θ_V), the pulled-back corner vectors P = g v₁ and
     R = g v₂ (3,) and the clamped eigenvalues of :func:`sd_eigensystem` (λ₁, λ₂, twist λ₃⁺, flip λ₄) with
@@ -292,3 +287,10 @@ def surface_gradients(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndar
     """Hat gradients (m,3,2) of each 3D triangle in its own frame, and the areas (m,) (mollified lengths)."""
     lengths = mollified_lengths(V, F)
     return hat_gradients(local_triangles(lengths)), intrinsic_areas(lengths)
+
+
+@warmup
+def _warm() -> None:
+    """The compiled loops run once on one triangle (:func:`heatparam.compiled.warm_all`)."""
+    _jacobian_loop(np.eye(3, 2), np.array([[0, 1, 2]]), np.ones((1, 3, 2)), np.empty((1, 2, 2)))
+    _entries_loop(np.eye(2)[None], np.ones((1, 3, 2)), np.ones(1), np.empty((1, 2, 2)), np.empty((21, 1)))
