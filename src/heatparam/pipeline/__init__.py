@@ -250,7 +250,7 @@ class _Refined:
     def flat(self) -> Flat:
         f, h = self.flattening, self.heat
         summary = map_metrics(f.surface.V, f.surface.F, self.rf.x, f.prog, h.layout)
-        method = method_report(f.opts, h.layout, h.skipped, h.fill, self.rf.report())
+        method = method_report(f.opts, h.layout, h.skipped, h.fill, self.rf.report(summary))
         return Flat(self.rf.x, summary, method, h.layout, h.fill_surface, h.warnings,
                     None if self.rf.done else self.resume)
 

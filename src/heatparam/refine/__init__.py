@@ -169,8 +169,10 @@ class Refinement:
         self.seconds += time.perf_counter() - t0
         return done
 
-    def report(self) -> dict:
-        """The JSON-able report (start, polish, multilevel, bijectivity of ``x``, seconds)."""
+    def report(self, measured: dict | None = None) -> dict:
+        """The JSON-able report (start, polish, multilevel, bijectivity of ``x``, seconds). ``measured``: the
+        ``boundary_crossings`` and ``inverted_loops`` of ``x`` where the caller has them (``metrics.summary``: the
+        same counts, 0.14 s at 235k faces)."""
         t0 = time.perf_counter()
         report = dict(self._report)
         pinfo = self.polish.report()
@@ -180,8 +182,11 @@ class Refinement:
         report["polish"] = pinfo
         x = self.x
         report["flips"] = int((det(jacobians(x, self.F, self.g)) <= 0).sum())
-        report["boundary_crossings"] = int(metrics.boundary_crossings(x, self.F))
-        report["inverted_loops"] = metrics.inverted_loops(x, self.F)
+        if measured is None:
+            measured = {"boundary_crossings": metrics.boundary_crossings(x, self.F),
+                        "inverted_loops": metrics.inverted_loops(x, self.F)}
+        report["boundary_crossings"] = int(measured["boundary_crossings"])
+        report["inverted_loops"] = measured["inverted_loops"]
         report["bijective"] = (report["flips"] == 0 and report["boundary_crossings"] == 0
                                and report["inverted_loops"] == 0)
         report["seconds"] = round(self.seconds + time.perf_counter() - t0, 3)
