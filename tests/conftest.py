@@ -11,6 +11,16 @@ from scipy.spatial import Delaunay
 SHARED_MESHES = Path(__file__).resolve().parents[1].parent / "shared" / "meshes"
 
 
+def imports_numba(code: str) -> bool:
+    """Whether running ``code`` in a fresh interpreter imports numba (0.1-0.5 s a process)."""
+    import subprocess
+    import sys
+
+    code += "\nimport sys\nprint('numba' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return out.stdout.strip() == "True"
+
+
 def shared_mesh(name: str) -> Path:
     p = SHARED_MESHES / name
     if not p.exists():

@@ -5,6 +5,8 @@ import numpy as np
 
 from heatparam.compiled import compiled
 
+from conftest import imports_numba
+
 
 @compiled()
 def _twice(x):
@@ -25,10 +27,8 @@ def test_a_compiled_loop_calls_the_compiled_loops_it_names():
 
 
 def test_importing_the_compiled_loops_loads_no_numba():
-    code = ("import sys, heatparam.atlas.grow, heatparam.atlas.overlap, heatparam.mesh.nest, heatparam.refine.energy; "
-            "print('numba' in sys.modules)")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "False"
+    assert not imports_numba("import heatparam.atlas.grow, heatparam.atlas.overlap, heatparam.mesh.nest, "
+                             "heatparam.refine.energy")
 
 
 def test_warming_up_compiles_the_atlas_loops_before_any_atlas():

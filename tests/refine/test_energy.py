@@ -6,6 +6,8 @@ import numpy as np
 
 from heatparam.refine import energy
 
+from conftest import imports_numba
+
 
 def test_jacobians_from_the_compiled_loop_match_numpys_products():
     """``energy.jacobians`` runs a compiled loop from ``COMPILED_MIN_FACES`` faces: the same Jacobians as the
@@ -22,13 +24,8 @@ def test_jacobians_from_the_compiled_loop_match_numpys_products():
 
 def test_a_small_disk_is_flattened_without_numba():
     """Below ``COMPILED_MIN_FACES`` a disk's pipeline never imports numba (0.1-0.5 s a process)."""
-    import subprocess
-    import sys
-
-    code = ("import sys, heatparam\nfrom heatparam import datasets\ns = datasets.cylinder_patch(h=0.1)\n"
-            "heatparam.parameterize(s.V, s.F)\nprint('numba' in sys.modules)")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "False"
+    assert not imports_numba("import heatparam\nfrom heatparam import datasets\ns = datasets.cylinder_patch(h=0.1)\n"
+                             "heatparam.parameterize(s.V, s.F)")
 
 
 def test_newton_entries_from_the_compiled_loop_match_numpys():

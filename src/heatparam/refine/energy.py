@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from heatparam.compiled import compiled, warmup
+from heatparam.compiled import Compiled, compiled, warmup
 from heatparam.operators import intrinsic_areas, local_triangles, mollified_lengths
 
 
@@ -203,23 +203,7 @@ def sd_newton_entries(J: np.ndarray, g: np.ndarray, w: np.ndarray, chunk: int = 
 
 def _entries(J: np.ndarray, g: np.ndarray, w: np.ndarray, grad: np.ndarray, out: np.ndarray) -> None:
     """:func:`sd_newton_entries` on one pass of faces, written into ``grad`` (k,2,2) and ``out`` (21,k)."""
-    a, b, c, d = J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1]
-    # signed SVD as svd2: σ₁,₂ = q ± r, θ_U = (a₂ + a₁)/2, θ_V = (a₁ − a₂)/2
-    e, f, gg, h = 0.5 * (a + d), 0.5 * (a - d), 0.5 * (c + b), 0.5 * (c - b)
-    q, r = np.sqrt(e * e + h * h), np.sqrt(f * f + gg * gg)
-    a1, a2 = np.arctan2(gg, f), np.arctan2(h, e)
-    tu, tv = 0.5 * (a2 + a1), 0.5 * (a1 - a2)
-    cu, su, cv, sv = np.cos(tu), np.sin(tu), np.cos(tv), np.sin(tv)
-    s1, s2 = q + r, q - r
-    s11, s22, s12 = s1 * s1, s2 * s2, s1 * s2
-    p3 = s12 * s12 * s12
-    l1 = w * (2 + 6 / (s11 * s11))
-    l2 = w * (2 + 6 / (s22 * s22))
-    mu = w * np.maximum(1 - (s11 - s12 + s22) / p3, 0.0)  # half the twist eigenvalue, clamped (the PSD projection)
-    nu = w * np.maximum(1 + (s11 + s12 + s22) / p3, 0.0)  # half the flip eigenvalue (< 0 only where det J < 0)
-    sig, dl = mu + nu, nu - mu
-    # dΨ/dJ = U diag(2σ − 2σ⁻³) Vᵀ, weighted
-    d1, d2 = w * (2 * s1 - 2 / (s1 * s11)), w * (2 * s2 - 2 / (s2 * s22))
+    cu, su, cv, sv, l1, l2, sig, dl, d1, d2 = _svd_terms(J[:, 0, 0], J[:, 0, 1], J[:, 1, 0], J[:, 1, 1], w)
     cd1, sd1, cd2, sd2 = cu * d1, su * d1, cu * d2, su * d2
     grad[:, 0, 0] = cd1 * cv + sd2 * sv
     grad[:, 0, 1] = cd1 * sv - sd2 * cv
@@ -227,10 +211,7 @@ def _entries(J: np.ndarray, g: np.ndarray, w: np.ndarray, grad: np.ndarray, out:
     grad[:, 1, 1] = sd1 * sv + cd2 * cv
     P = [g[:, i, 0] * cv + g[:, i, 1] * sv for i in range(3)]  # g v₁
     R = [g[:, i, 1] * cv - g[:, i, 0] * sv for i in range(3)]  # g v₂
-    cc, ss, cs = cu * cu, su * su, cu * su  # u₁ = (c, s), u₂ = (−s, c)
-    A0, B0, G0 = l1 * cc + sig * ss, l2 * ss + sig * cc, -(dl * cs)
-    A1, B1, G1 = l1 * ss + sig * cc, l2 * cc + sig * ss, dl * cs
-    A01, B01, G01, G10 = (l1 - sig) * cs, (sig - l2) * cs, -(dl * ss), dl * cc
+    A0, B0, G0, A1, B1, G1, A01, B01, G01, G10 = _block_terms(cu, su, l1, l2, sig, dl)
     for k, (i, j) in enumerate(zip(_I3, _J3, strict=True)):
         pp, rr, pr = P[i] * P[j], R[i] * R[j], P[i] * R[j] + R[i] * P[j]
         out[k] = A0 * pp + B0 * rr + G0 * pr
@@ -240,26 +221,44 @@ def _entries(J: np.ndarray, g: np.ndarray, w: np.ndarray, grad: np.ndarray, out:
         out[12 + k] = A01 * (P[i] * P[j]) + B01 * (R[i] * R[j]) + G01 * (P[i] * R[j]) + G10 * (R[i] * P[j])
 
 
-@compiled(error_model="numpy")  # a division by zero gives inf, as in numpy, not an exception
+def _svd_terms(a, b, c, d, w):
+    """Of J = [[a, b], [c, d]] and the weight w (arrays, or scalars in :func:`_entries_loop`): the rotations' cos and
+    sin (cu, su of U, cv, sv of V), the weighted eigenvalues l1, l2, σ = μ + ν and δ = ν − μ (μ, ν: half the clamped
+    twist and the flip eigenvalues), and the weighted dΨ/dσ₁,₂ (d1, d2)."""
+    # signed SVD as svd2: σ₁,₂ = q ± r, θ_U = (a₂ + a₁)/2, θ_V = (a₁ − a₂)/2
+    e, f, gg, h = 0.5 * (a + d), 0.5 * (a - d), 0.5 * (c + b), 0.5 * (c - b)
+    q, r = np.sqrt(e * e + h * h), np.sqrt(f * f + gg * gg)
+    a1, a2 = np.arctan2(gg, f), np.arctan2(h, e)
+    tu, tv = 0.5 * (a2 + a1), 0.5 * (a1 - a2)
+    s1, s2 = q + r, q - r
+    s11, s22, s12 = s1 * s1, s2 * s2, s1 * s2
+    p3 = s12 * s12 * s12
+    l1 = w * (2 + 6 / (s11 * s11))
+    l2 = w * (2 + 6 / (s22 * s22))
+    mu = w * np.maximum(1 - (s11 - s12 + s22) / p3, 0.0)  # half the twist eigenvalue, clamped (the PSD projection)
+    nu = w * np.maximum(1 + (s11 + s12 + s22) / p3, 0.0)  # half the flip eigenvalue (< 0 only where det J < 0)
+    # dΨ/dJ = U diag(2σ − 2σ⁻³) Vᵀ, weighted
+    d1, d2 = w * (2 * s1 - 2 / (s1 * s11)), w * (2 * s2 - 2 / (s2 * s22))
+    return np.cos(tu), np.sin(tu), np.cos(tv), np.sin(tv), l1, l2, mu + nu, nu - mu, d1, d2
+
+
+def _block_terms(cu, su, l1, l2, sig, dl):
+    """The coefficients α, β, γ of the (u, u), (v, v) and (u, v) blocks (:func:`sd_newton_entries`), with
+    u₁ = (cu, su), u₂ = (−su, cu): A0, B0, G0, A1, B1, G1, A01, B01, G01, G10."""
+    cc, ss, cs = cu * cu, su * su, cu * su
+    return (l1 * cc + sig * ss, l2 * ss + sig * cc, -(dl * cs), l1 * ss + sig * cc, l2 * cc + sig * ss, dl * cs,
+            (l1 - sig) * cs, (sig - l2) * cs, -(dl * ss), dl * cc)
+
+
+#: the per-face terms compiled for :func:`_entries_loop`, which names them (Python calls them as they are, on arrays)
+_COMPILED_TERMS = (Compiled(_svd_terms, options={"error_model": "numpy"}), Compiled(_block_terms))
+
+
+@compiled(*_COMPILED_TERMS)
 def _entries_loop(J, g, w, grad, out):  # pragma: no cover - compiled
-    """:func:`_entries` one face at a time (the same formulas, in the same order)."""
+    """:func:`_entries` one face at a time, with the same terms (:func:`_svd_terms`, :func:`_block_terms`)."""
     for f in range(J.shape[0]):
-        a, b, c, d = J[f, 0, 0], J[f, 0, 1], J[f, 1, 0], J[f, 1, 1]
-        e, fm, gg, h = 0.5 * (a + d), 0.5 * (a - d), 0.5 * (c + b), 0.5 * (c - b)
-        q, r = np.sqrt(e * e + h * h), np.sqrt(fm * fm + gg * gg)
-        a1, a2 = np.arctan2(gg, fm), np.arctan2(h, e)
-        tu, tv = 0.5 * (a2 + a1), 0.5 * (a1 - a2)
-        cu, su, cv, sv = np.cos(tu), np.sin(tu), np.cos(tv), np.sin(tv)
-        s1, s2 = q + r, q - r
-        s11, s22, s12 = s1 * s1, s2 * s2, s1 * s2
-        p3 = s12 * s12 * s12
-        wf = w[f]
-        l1 = wf * (2 + 6 / (s11 * s11))
-        l2 = wf * (2 + 6 / (s22 * s22))
-        mu = wf * max(1 - (s11 - s12 + s22) / p3, 0.0)
-        nu = wf * max(1 + (s11 + s12 + s22) / p3, 0.0)
-        sig, dl = mu + nu, nu - mu
-        d1, d2 = wf * (2 * s1 - 2 / (s1 * s11)), wf * (2 * s2 - 2 / (s2 * s22))
+        cu, su, cv, sv, l1, l2, sig, dl, d1, d2 = _svd_terms(J[f, 0, 0], J[f, 0, 1], J[f, 1, 0], J[f, 1, 1], w[f])
         cd1, sd1, cd2, sd2 = cu * d1, su * d1, cu * d2, su * d2
         grad[f, 0, 0] = cd1 * cv + sd2 * sv
         grad[f, 0, 1] = cd1 * sv - sd2 * cv
@@ -267,10 +266,7 @@ def _entries_loop(J, g, w, grad, out):  # pragma: no cover - compiled
         grad[f, 1, 1] = sd1 * sv + cd2 * cv
         P = (g[f, 0, 0] * cv + g[f, 0, 1] * sv, g[f, 1, 0] * cv + g[f, 1, 1] * sv, g[f, 2, 0] * cv + g[f, 2, 1] * sv)
         R = (g[f, 0, 1] * cv - g[f, 0, 0] * sv, g[f, 1, 1] * cv - g[f, 1, 0] * sv, g[f, 2, 1] * cv - g[f, 2, 0] * sv)
-        cc, ss, cs = cu * cu, su * su, cu * su
-        A0, B0, G0 = l1 * cc + sig * ss, l2 * ss + sig * cc, -(dl * cs)
-        A1, B1, G1 = l1 * ss + sig * cc, l2 * cc + sig * ss, dl * cs
-        A01, B01, G01, G10 = (l1 - sig) * cs, (sig - l2) * cs, -(dl * ss), dl * cc
+        A0, B0, G0, A1, B1, G1, A01, B01, G01, G10 = _block_terms(cu, su, l1, l2, sig, dl)
         k = 0
         for i in range(3):  # the upper triangles in BLOCK_ENTRIES' order
             for j in range(i, 3):
