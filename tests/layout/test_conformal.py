@@ -167,3 +167,36 @@ def test_smoothed_layout_keeps_the_true_area_and_unfolds_border_spikes():
     assert bijectivity(uv, F, g) == (0, 0)
     assert np.isclose(signed_areas(uv, F).sum(), face_areas(V, F).sum(), rtol=1e-9)  # V's area, not the smoothed
     np.testing.assert_array_equal(smoothed_conformal_layout(V, F, 0), conformal_layout(V, F))
+
+
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="PARDISO is not installed")
+def test_layouts_of_one_triangulation_refactorize_the_kept_factor_to_the_same_layouts():
+    from heatparam.layout.conformal import ConformalLayouts, smoothed_conformal_layout
+
+    s = datasets.cylinder_with_holes(h=0.018)  # ≥ 20k unknowns: PARDISO
+    assert 2 * len(s.V) >= 20_000
+    rng = np.random.default_rng(3)
+    V = s.V + 0.002 * rng.standard_normal(s.V.shape)
+    layouts = ConformalLayouts(s.F)
+    first = layouts.layout(V)
+    kept = layouts._fac
+    smoothed = layouts.smoothed(V, 4)
+    assert layouts._fac is kept and not kept.symbolic  # the same object, refactorized in place
+    np.testing.assert_array_equal(first, conformal_layout(V, s.F))
+    np.testing.assert_array_equal(smoothed, smoothed_conformal_layout(V, s.F, 4))
+    layouts.free()
+    assert layouts._fac is None
+    np.testing.assert_array_equal(layouts.layout(V), first)  # factorized anew
+    layouts.free()
+
+
+def test_a_surface_frees_its_conformal_factor_after_the_smoothed_layout(monkeypatch):
+    from heatparam.pipeline.surface import Surface
+
+    s = datasets.cylinder_with_holes(h=0.1)
+    surface, _, _ = Surface.validated(s.V, s.F)
+    surface.conformal()
+    assert surface._layouts._fac is not None  # kept for the smoothed layout
+    surface.smoothed_conformal(4)
+    assert surface._layouts._fac is None
+    surface.release_layouts()  # nothing left to free: no error

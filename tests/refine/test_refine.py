@@ -1145,3 +1145,25 @@ def test_the_levels_may_restart_from_the_fallback_unless_they_start_there_or_at_
         assert handed["restart"] == fallback.start
     else:
         assert handed["restart"] is None
+
+
+def test_the_fallback_releases_what_it_keeps_once_the_start_is_chosen(monkeypatch):
+    """``SmoothedStart(release=)`` (the surface's conformal factorization) is called after the start is chosen and
+    before the polish, which needs the memory more."""
+    s = datasets.curved_cap_with_holes(sphere_radius=1.2, h=0.05)
+    g, area = energy.surface_gradients(s.V, s.F)
+    events = []
+    fallback = start.SmoothedStart(lambda steps: conformal_layout(s.V, s.F), s.F, g, area, boundary_loops(s.F),
+                                   release=lambda: events.append("release"))
+
+    class Polished(Exception):
+        pass
+
+    def polish(*args, **kwargs):
+        events.append("polish")
+        raise Polished
+
+    monkeypatch.setattr(refine, "multilevel_polish", polish)
+    with pytest.raises(Polished):
+        refine.Refinement(s.V, s.F, None, fallback=fallback)
+    assert events == ["release", "polish"]

@@ -83,6 +83,9 @@ class _NoFallback:
     def start(self):
         return None, {}
 
+    def release(self):
+        pass
+
 
 @pytest.mark.slow
 def test_beetle_cut_mesh_starts_from_its_reopened_conformal_layout():

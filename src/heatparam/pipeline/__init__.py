@@ -197,6 +197,7 @@ class _Flattening:
             fill = {"used": False, "reason": fill_reason, "skipped": check.skipped} if fill_used else \
                 {"used": False, "reason": fill_reason}
             return self.refined(None, check, _Heat(None, check.skipped, fill, None, []))
+        self.surface.release_layouts()  # the heat stage's factorizations need the memory more
         try:
             m = mds_map(self.surface, opts, prog, fill_used, fill_reason)
         except HeatparamError as exc:
@@ -218,7 +219,8 @@ class _Flattening:
         """The refinement's start before Tutte's: the conformal layout of the smoothed surface, made bijective by
         ``repair`` (default ``refine.start.repaired_layout``)."""
         s = self.surface
-        return SmoothedStart(s.smoothed_conformal, s.F, *s.gradients(), s.info.boundary_loops, repair=self.repair)
+        return SmoothedStart(s.smoothed_conformal, s.F, *s.gradients(), s.info.boundary_loops, repair=self.repair,
+                             release=s.release_layouts)
 
     def refined(self, uv: np.ndarray | None, check, heat: _Heat) -> Flat:
         """The refinement from the MDS layout ``uv`` (None: the heat stage was skipped), as a Flat."""

@@ -8,7 +8,7 @@ import functools
 
 import numpy as np
 
-from heatparam.layout.conformal import SCP_MAX_ITERS
+from heatparam.layout.conformal import SCP_MAX_ITERS, ConformalLayouts
 from heatparam.mesh.frame import UnitFrame, frame_of
 from heatparam.mesh.topology import Compaction, compact
 from heatparam.mesh.validate import MeshInfo, check_arrays, validate_mesh
@@ -20,7 +20,9 @@ class Surface:
 
     ``conformal()`` (the spectral conformal layout scaled to the 3D area, read-only) and ``gradients()`` (the
     refinement's hat gradients and areas) are computed at most once and shared by the fill decision, the start
-    checks and the refinement; ``smoothed_conformal(steps)`` (the refinement's fallback start) once per ``steps``.
+    checks and the refinement; ``smoothed_conformal(steps)`` (the refinement's fallback start) once per ``steps``,
+    refactorizing the conformal layout's matrix pattern (``layout.conformal.ConformalLayouts``) until
+    ``release_layouts()``.
     ``conformal_method``, ``conformal_max_solves``: how the spectral layouts are solved
     (``layout.conformal.spectral_conformal``'s ``method`` and ``max_solves``; the seams stage's cut-open mesh uses
     ``inverse`` and ``SCP_CUT_MAX_ITERS``).
@@ -31,6 +33,8 @@ class Surface:
         self.V, self.F, self.info = V, F, info
         self.frame = frame if frame is not None else UnitFrame(0, np.zeros(3))
         self.conformal_method, self.conformal_max_solves = conformal_method, conformal_max_solves
+        # the conformal layouts' factorization, kept from conformal() to smoothed_conformal() until release_layouts()
+        self._layouts = ConformalLayouts(F, method=conformal_method, max_solves=conformal_max_solves)
 
     @classmethod
     def validated(cls, V: np.ndarray, F: np.ndarray) -> tuple[Surface, Compaction, MeshInfo]:
@@ -48,9 +52,7 @@ class Surface:
     @functools.cache  # noqa: B019 - one Surface per flattening; the cache lives exactly as long as it
     def conformal(self) -> np.ndarray:
         """The conformal layout (``layout.conformal.conformal_layout``: spectral, no pins), (n,2), computed once."""
-        from heatparam.layout.conformal import conformal_layout
-
-        uv0 = conformal_layout(self.V, self.F, method=self.conformal_method, max_solves=self.conformal_max_solves)
+        uv0 = self._layouts.layout(self.V)
         uv0.setflags(write=False)
         return uv0
 
@@ -58,11 +60,16 @@ class Surface:
     def smoothed_conformal(self, steps: int) -> np.ndarray:
         """The conformal layout of the surface smoothed by ``steps`` umbrella steps
         (``layout.conformal.smoothed_conformal_layout``), (n,2), computed once per ``steps``."""
-        from heatparam.layout.conformal import smoothed_conformal_layout
-
-        uv = smoothed_conformal_layout(self.V, self.F, steps, self.conformal_method, self.conformal_max_solves)
+        uv = self._layouts.smoothed(self.V, steps)
+        self._layouts.free()  # the last layout a flattening asks for (one ``steps``)
         uv.setflags(write=False)
         return uv
+
+    def release_layouts(self) -> None:
+        """Free the factorization that :meth:`conformal` keeps for :meth:`smoothed_conformal` (the same faces: a
+        numerical factorization only); a later layout factorizes anew. The flattening releases it once the
+        refinement's start is chosen, and before the heat stage."""
+        self._layouts.free()
 
     @functools.cache  # noqa: B019
     def gradients(self) -> tuple[np.ndarray, np.ndarray]:

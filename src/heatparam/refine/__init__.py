@@ -140,6 +140,7 @@ class Refinement:
         if fallback is None:
             fallback = SmoothedStart(functools.partial(smoothed_conformal_layout, V, F), F, g, area, disk.loops)
         x, start = choose_start(V, F, uv, disk, g, area, lscm, conformal, params.solver, extra_starts, fallback)
+        fallback.release()  # the polish needs the memory more
         self._report: dict = {"method": "sd", "holes": len(disk.holes), "start": start}
         self.x_start = x
         with _one_openblas_thread():

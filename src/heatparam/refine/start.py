@@ -229,13 +229,23 @@ class SmoothedStart:
         loops (outer first): to judge bijectivity and to repair.
     repair : layout -> (bijective layout or None, report); None: :func:`repaired_layout`, as for the other
         candidates (the seams stage passes its reopening of crossing slits for a mesh cut open).
+    release : frees what ``layout`` keeps to make it sooner (``pipeline.Surface.release_layouts``: the conformal
+        layout's factorization), called by :meth:`release` once the start is chosen.
     """
 
     def __init__(self, layout: Callable[[int], np.ndarray], F: np.ndarray, g: np.ndarray, area: np.ndarray,
                  loops: list[np.ndarray],
-                 repair: Callable[[np.ndarray], tuple[np.ndarray | None, dict]] | None = None):
+                 repair: Callable[[np.ndarray], tuple[np.ndarray | None, dict]] | None = None,
+                 release: Callable[[], None] | None = None):
         self.layout, self.F, self.g = layout, F, g
         self.repair = repair or functools.partial(repaired_layout, F=F, g=g, area=area, loops=loops)
+        self._release = release
+
+    def release(self) -> None:
+        """The start is chosen: free what the layout keeps (``release``); a later :meth:`start` (a coarse level's
+        restart) makes its layout without it."""
+        if self._release is not None:
+            self._release()
 
     def start(self) -> tuple[np.ndarray | None, dict]:
         """(bijective layout (n,2) or None, the report's ``start.conformal_smoothed`` part)."""
