@@ -155,8 +155,7 @@ class ConformalLayouts:
         outer = max(loops, key=len)
         a = int(outer[0])
         far = int(outer[np.argmax(np.linalg.norm(V[outer] - V[a], axis=1))])
-        # start: the 3D distances to a and to far, which a rigid motion of the input leaves as they are (so does
-        # Q, B)
+        # start: the 3D distances to a and to far, which a rigid motion of the input leaves as they are (as Q, B)
         x = np.linalg.norm(V[used][None] - V[[a, far]][:, None], axis=2).ravel()
         solve = _centred_solver(fac, bu)
         x = _centred(x, bu)
