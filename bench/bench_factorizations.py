@@ -17,7 +17,7 @@ import json
 import time
 import traceback
 
-from common import machine
+from common import machine, seeds
 from large_family import draw
 
 MIN_UNKNOWNS = 100_000
@@ -61,14 +61,6 @@ class FactorLog:
             agg[f"{whose} {kind}"][0] += 1
             agg[f"{whose} {kind}"][1] += seconds
         return {k: [c, round(s, 2)] for k, (c, s) in sorted(agg.items())}
-
-
-def seeds(spec: str) -> list[int]:
-    out: list[int] = []
-    for part in spec.split(","):
-        lo, _, hi = part.partition("-")
-        out += list(range(int(lo), int(hi or lo) + 1))
-    return out
 
 
 def main() -> None:

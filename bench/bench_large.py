@@ -44,7 +44,7 @@ from pathlib import Path
 
 import large_family
 import numpy as np
-from common import PEAK_RSS, SHARED, machine, run_isolated
+from common import PEAK_RSS, SHARED, machine, run_isolated, seeds
 
 OURS = PEAK_RSS + """
 import json, time
@@ -165,15 +165,6 @@ def _write_obj(path: str, V: np.ndarray, F: np.ndarray) -> None:
     with open(path, "w") as fh:
         fh.write("".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in V.tolist()))
         fh.write("".join(f"f {a} {b} {c}\n" for a, b, c in (F + 1).tolist()))
-
-
-def seeds(spec: str) -> list[int]:
-    """``1000-1019``, ``0,3,7`` or both mixed, as a list of ints."""
-    out: list[int] = []
-    for part in spec.split(","):
-        a, _, b = part.partition("-")
-        out += list(range(int(a), int(b) + 1)) if b else [int(a)]
-    return out
 
 
 def run_cli(mesh: Path, tmp: Path) -> dict:

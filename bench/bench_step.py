@@ -41,7 +41,7 @@ from pathlib import Path
 
 import cad_family
 import numpy as np
-from common import SHARED, load, machine, upsampled_camelhead
+from common import SHARED, load, machine, seeds, upsampled_camelhead
 
 import heatparam
 from heatparam import datasets
@@ -232,15 +232,6 @@ def _mapped(name: str, maps: Path | None):
     return V, F, r.uv, r.Fuv, r.uv_vertex, chart
 
 
-def _seeds(spec: str) -> list[int]:
-    """``1000-1019`` or ``3,7,12`` (or both, comma separated) as a list of seeds."""
-    out = []
-    for part in spec.split(","):
-        lo, _, hi = part.partition("-")
-        out += list(range(int(lo), int(hi or lo) + 1))
-    return out
-
-
 FAMILY_HEAD = ("| seed | part | faces (mesh) | expected faces | STEP faces | creases | splits | s→m max | s→m p99 "
                "| m→s max | m→s p99 | area % | valid | invalid faces | unmeshed faces | shells | free edges | solids "
                "| warnings | map s | write_step s | accepted |")
@@ -258,14 +249,14 @@ def _accepted(m: dict, warnings: int) -> str:
     return "yes" if not fails else "NO: " + ", ".join(fails)
 
 
-def family(seeds: list[int]) -> None:
+def family(drawn: list[int]) -> None:
     """The per-part table of the generated CAD parts (``cad_family.draw``) and the distribution over them."""
-    print(f"# STEP of generated CAD parts (cad_family seeds {seeds[0]}-{seeds[-1]}) — {time.strftime('%Y-%m-%d')} "
+    print(f"# STEP of generated CAD parts (cad_family seeds {drawn[0]}-{drawn[-1]}) — {time.strftime('%Y-%m-%d')} "
           f"— {machine()}\n")
     print(FAMILY_HEAD)
     print("|" + "---|" * FAMILY_HEAD.count(" | ") + "---|")
     rows = []
-    for seed in seeds:
+    for seed in drawn:
         V, F, desc, expected = cad_family.draw(seed)
         t = time.perf_counter()
         r = heatparam.parameterize(V, F)
@@ -302,7 +293,7 @@ def _distribution(rows: list[tuple]) -> None:
 
 def main(argv: list[str]) -> None:
     if "--family" in argv:
-        family(_seeds(argv[argv.index("--family") + 1]))
+        family(seeds(argv[argv.index("--family") + 1]))
         return
     maps = Path(argv[argv.index("--maps") + 1]) if "--maps" in argv else None
     argv = [a for i, a in enumerate(argv) if a != "--maps" and (i == 0 or argv[i - 1] != "--maps")]

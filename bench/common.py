@@ -25,6 +25,15 @@ def machine() -> str:
             f"{psutil.virtual_memory().total / 2**30:.0f} GiB, Python {platform.python_version()}")
 
 
+def seeds(spec: str) -> list[int]:
+    """``1000-1019``, ``0,3,7`` or both mixed, as a list of ints."""
+    out: list[int] = []
+    for part in spec.split(","):
+        a, _, b = part.partition("-")
+        out += list(range(int(a), int(b) + 1)) if b else [int(a)]
+    return out
+
+
 def load(name: str):
     """A generated shape (``heatparam.datasets`` function name) or a ../shared/meshes file: (V, F, uv_true or None)."""
     from heatparam import datasets
