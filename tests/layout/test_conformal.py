@@ -190,7 +190,7 @@ def test_layouts_of_one_triangulation_refactorize_the_kept_factor_to_the_same_la
     layouts.free()
 
 
-def test_a_surface_frees_its_conformal_factor_after_the_smoothed_layout(monkeypatch):
+def test_a_surface_frees_its_conformal_factor_after_the_smoothed_layout():
     from heatparam.pipeline.surface import Surface
 
     s = datasets.cylinder_with_holes(h=0.1)
