@@ -694,6 +694,24 @@ def test_fine_level_without_a_scaffold_until_boundaries_meet(cap_from_tutte, cap
     assert switched["energy_end"] == pytest.approx(scaffolded["energy_end"], rel=1e-9)
 
 
+def test_a_large_meshs_finest_level_stops_on_the_excess_rule(cap_from_tutte, cap_levels):
+    """A large mesh's finest level also stops once an iteration gains less than ``newton.EXCESS_TOL`` of the energy's
+    excess over its coarse level's final energy (the atlas's joint polish's rule, on gains made only): its last
+    iterations only refine a map already within a few percent of that excess of its minimum. Coarse levels and
+    meshes too small for levels keep the plain tolerance."""
+    s, g, area, loops, x0 = cap_from_tutte
+    ml, y = cap_levels
+    fine = ml.fine_settings(y)
+    assert fine.excess_tol == newton.EXCESS_TOL > 0 and not fine.excess_predict
+    assert fine.excess_base == ml.report["coarse_polish"]["energy_end"] > 1.0
+    assert ml.coarse.run.settings.excess_tol == 0.0
+    single = multilevel.Multilevel(s.V, s.F, x0, loops, g, area, multilevel.LevelSettings(min_vertices=0))
+    assert single.fine_settings(None).excess_tol == 0.0
+    quick, full = (_polished(cap_from_tutte, y, replace(fine, excess_tol=e)).report() for e in (fine.excess_tol, 0.0))
+    assert quick["iterations"] <= full["iterations"]
+    assert quick["energy_end"] - full["energy_end"] <= 0.1 * (full["energy_end"] - 1.0)
+
+
 def test_levels_stall_rules_and_the_fine_scaffold_after_a_stall(cap_from_tutte, cap_levels):
     """The levels of a coarse-to-fine polish give up at the barrier after ``COARSE_STALL_ITERS`` (coarse) and
     ``FINE_STALL_ITERS`` (the fine level polished from one) barrier-limited iterations; after a coarse level that

@@ -22,18 +22,12 @@ from heatparam import metrics
 from heatparam.mesh.planar import shelf_pack
 from heatparam.mesh.topology import boundary_loops
 from heatparam.refine.energy import det, jacobians, surface_gradients
-from heatparam.refine.newton import ScaffoldUse, polish
+from heatparam.refine.newton import EXCESS_TOL, ScaffoldUse, polish
 
 __all__ = ["CHART_GAP", "EXCESS_TOL", "arrange", "refine_charts"]
 
 #: gap between two charts' boxes while they are polished together, as a fraction of the larger box's diagonal
 CHART_GAP = 0.25
-
-#: the joint polish also stops once an iteration gains less than this fraction of the energy's excess over an
-#: isometry (``newton.polish``'s excess_tol), and, whatever the step and the scaffold, after
-#: ``newton.EXCESS_STALL_ITERS`` such iterations in a row: on cow half the iterations for an iso mean 2e-4 higher
-#: (docs/history.md §18a).
-EXCESS_TOL = 0.03
 
 
 def arrange(uv: np.ndarray, vgroup: np.ndarray, k: int) -> np.ndarray:

@@ -83,6 +83,14 @@ STALL_ITERS = 5  # the polish gives up after this many barrier-limited iteration
 #: barrier-limited iterations after the first such one gained 2e-5 of energy 1.00094 together (docs/history.md §18)
 EXCESS_STALL_ITERS = 2
 
+#: ``excess_tol`` of the atlas's joint polish (``refine.charts``) and of a large mesh's finest level
+#: (``refine.multilevel``): an iteration that gains less than this fraction of the energy's excess (over an isometry;
+#: a fine level's over its coarse level's energy, ``PolishSettings.excess_base``) counts as small, and
+#: ``EXCESS_STALL_ITERS`` such iterations in a row stop the polish whatever the step and the scaffold; the joint
+#: polish also stops when the next gain is predicted below it: on cow half the iterations for an iso mean 2e-4 higher
+#: (docs/history.md §18a). The seams stage pauses its trial maps at the same fraction (``options.SEAM_PAUSE_EXCESS``).
+EXCESS_TOL = 0.03
+
 #: Without a scaffold (``ScaffoldUse.NEVER``) a step is halved at most this many times until no boundary
 #: edges cross
 CROSSING_HALVINGS = 20
@@ -518,13 +526,13 @@ class ScaffoldUse(Enum):
 
 class Stop(Enum):
     """Why a polish stopped (:attr:`Polish.stop`); the value is the report's text (``{detail}``: what failed,
-    ``{excess_tol}``: the excess rule's tolerance)."""
+    ``{excess_tol}``: the excess rule's tolerance, ``{base}``: what its excess is measured from)."""
 
     ITERATION_CAP = "iteration cap"
     CONVERGED = "converged"
     START_IS_MINIMUM = "converged (the start is an isometry to within the tolerance)"
-    EXCESS_GAINS = "converged (gains below {excess_tol:g} of the excess over an isometry)"
-    EXCESS_PREDICTED = "converged (next gain predicted below {excess_tol:g} of the excess over an isometry)"
+    EXCESS_GAINS = "converged (gains below {excess_tol:g} of the excess over {base})"
+    EXCESS_PREDICTED = "converged (next gain predicted below {excess_tol:g} of the excess over {base})"
     STALLED = "stalled at the barrier"
     NO_DESCENT = "no descent"
     SCAFFOLD_FAILED = "scaffold failed: {detail}"
@@ -538,7 +546,10 @@ class PolishSettings:
     max_iters : iteration cap. tol : converged when an uncut step lowers the energy by less than this fraction.
     backend : factorization backend (``solvers.Factor``). excess_tol : an iteration that lowers the energy by less
     than this fraction of its excess over an isometry (Ψ - 4) also counts as small (0: off; the atlas's joint
-    polish). stall_iters : barrier-limited iterations in a row that gain < ``tol`` before the polish gives up.
+    polish, a large mesh's finest level). excess_base : the normalized energy that excess is measured from (1: an
+    isometry; a fine level: its coarse level's). excess_predict : with ``excess_tol``, also stop when the next
+    gain, predicted from the last two, falls below it (False: on gains made only). stall_iters : barrier-limited
+    iterations in a row that gain < ``tol`` before the polish gives up.
     confirm_light : an uncut step that gains < ``tol`` stops the polish only at the scaffold's lightest weight
     (one more iteration there to confirm it); False stops at once (a fine level after a coarse one). park : a pause
     frees the factorization and the Hessian's pattern (False keeps them: a trial usually finished next).
@@ -552,6 +563,8 @@ class PolishSettings:
     tol: float = 1e-6
     backend: str = "auto"
     excess_tol: float = 0.0
+    excess_base: float = 1.0
+    excess_predict: bool = True
     stall_iters: int = STALL_ITERS
     confirm_light: bool = True
     park: bool = True
@@ -749,7 +762,8 @@ class Polish:
         scaffold's weight relaxed or stiffened ("Scaffold weight"), and whether to pause."""
         tol, excess_tol = self.settings.tol, self.settings.excess_tol
         gain = self.hist[-1] - Es1
-        low_excess = excess_tol > 0 and gain < excess_tol * (Es1 - 4.0)
+        excess = Es1 - 4.0 * self.settings.excess_base
+        low_excess = excess_tol > 0 and gain < excess_tol * excess
         self.small_excess = self.small_excess + 1 if low_excess else 0
         if low_excess and self.small_excess >= EXCESS_STALL_ITERS:
             self.hist.append(Es1)
@@ -757,7 +771,8 @@ class Polish:
         # the next gain as this one times its ratio to the last (Newton's gains shrink at least that fast near
         # the minimum): below the excess rule, the iteration is not made
         last = self.hist[-2] - self.hist[-1] if len(self.hist) > 1 else 0.0
-        if excess_tol > 0 and 0 < gain < last and gain * gain / last < excess_tol * (Es1 - 4.0):
+        if (excess_tol > 0 and self.settings.excess_predict and 0 < gain < last
+                and gain * gain / last < excess_tol * excess):
             self.hist.append(Es1)
             return self._stopped(Stop.EXCESS_PREDICTED, converged=True)
         if gain / self.hist[-1] < tol or low_excess:
@@ -779,7 +794,9 @@ class Polish:
 
     def stop_text(self) -> str:
         """Why the polish stopped, as the report says it."""
-        return self.stop.value.format(detail=self.stop_detail, excess_tol=self.settings.excess_tol)
+        base = self.settings.excess_base
+        return self.stop.value.format(detail=self.stop_detail, excess_tol=self.settings.excess_tol,
+                                      base="an isometry" if base == 1.0 else f"the coarse level's energy {base:.6f}")
 
     def report(self) -> dict:
         """The JSON-able report (``stop`` says "paused" while the polish has not stopped)."""
