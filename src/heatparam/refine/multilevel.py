@@ -398,10 +398,15 @@ class Multilevel:
         self.prepared = None
         self.report: dict = {}
 
+    @property
+    def large(self) -> bool:
+        """Whether the mesh is large enough for coarse levels (``LevelSettings.min_vertices``)."""
+        return 0 < self.settings.min_vertices <= len(self.V)
+
     def coarse_start(self) -> np.ndarray | None:
         """The fine polish's start from a coarse level, or None (the report says why)."""
         s = self.settings
-        if not 0 < s.min_vertices <= len(self.V):
+        if not self.large:
             self.report.update(used=False, reason="small mesh")
             return None
         if not normalized_energy(self.x, self.F, self.g, self.area) > 1.0 + MULTILEVEL_MIN_EXCESS:
@@ -458,7 +463,7 @@ class Multilevel:
         if y is None and self.near_isometric and not s.coarse:  # within 1% of an isometry, hence of the minimum
             tol *= MULTILEVEL_FINE_TOL_FACTOR
             self.report["fine_tol"] = tol
-        if not s.coarse and 0 < s.min_vertices <= len(self.V):  # a large mesh's finest level: module docstring
+        if self.large and not s.coarse:  # a large mesh's finest level: module docstring
             excess = EXCESS_TOL
         if y is not None:
             run, cp = self.coarse.run, self.report["coarse_polish"]
