@@ -184,6 +184,31 @@ def test_duplicated_corner_uvs_are_welded():
     np.testing.assert_array_equal(uvw[Fw], uv[F])
 
 
+def test_weld_uv_groups_corners_by_vertex_and_coordinates():
+    """``weld_uv`` (distinct (vertex, row) pairs sorted by coordinates) against its definition over corners: the
+    corners of one vertex with equal coordinates are one row, rows sorted by (vertex, u, v). Rows duplicated per
+    corner, rows shared by several vertices, equal coordinates on different rows and a seam (two rows, one
+    vertex, different coordinates)."""
+    V, F = grid(6, 5)
+    rng = np.random.default_rng(7)
+    uv = np.round(V[:, :2] * [1.0, 1.3], 1)
+    cases = [(uv, F), (uv[F].reshape(-1, 2), np.arange(3 * len(F)).reshape(-1, 3))]
+    uv3 = np.vstack([uv, uv[:4] + 9.0, [[0.0, 0.0]]])
+    Fuv3 = F.copy()
+    Fuv3[: len(F) // 2][F[: len(F) // 2] < 4] += len(uv)  # a seam at vertices 0-3
+    Fuv3[-1, 0] = len(uv3) - 1  # one row shared by any vertex
+    cases.append((uv3, Fuv3))
+    cases.append((rng.integers(0, 3, (40, 2)).astype(float), rng.integers(0, 40, F.shape)))
+    for uvc, Fuv in cases:
+        uvw, Fw = M.weld_uv(F, uvc, Fuv)
+        xy = uvc[Fuv.ravel()]
+        key = sorted({(int(v), float(a), float(b)) for v, (a, b) in zip(F.ravel(), xy, strict=True)})
+        assert [tuple(r) for r in uvw] == [k[1:] for k in key]
+        row = {k: i for i, k in enumerate(key)}
+        expect = [row[(int(v), float(a), float(b))] for v, (a, b) in zip(F.ravel(), xy, strict=True)]
+        assert np.array_equal(Fw.ravel(), expect)
+
+
 def test_summary_is_json_serializable():
     V, F = grid()
     uv = V[:, :2].copy()

@@ -177,7 +177,11 @@ def _assumed_units(V, F) -> str | None:
     from heatparam.formats.units import assumed_units_warning
 
     idx = np.asarray(F).ravel()
-    idx = idx[(idx >= 0) & (idx < len(V))].astype(np.int64) if idx.dtype.kind in "iu" else np.arange(len(V))
-    P = np.asarray(V, dtype=np.float64)[idx] if len(idx) else np.zeros((0, 3))
+    if idx.dtype.kind in "iu":  # the points faces reference, each once (a corner gather is 6x the rows)
+        used = np.zeros(len(V), dtype=bool)
+        used[idx[(idx >= 0) & (idx < len(V))]] = True
+    else:
+        used = np.ones(len(V), dtype=bool)
+    P = np.asarray(V, dtype=np.float64)[used] if used.any() else np.zeros((0, 3))
     P = P[np.isfinite(P).all(axis=1)] if P.ndim == 2 else np.zeros((0, 3))
     return assumed_units_warning(float((P.max(axis=0) - P.min(axis=0)).max())) if len(P) else None

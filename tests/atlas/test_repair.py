@@ -10,8 +10,9 @@ import pytest
 
 from heatparam import datasets
 from heatparam.atlas.overlap import count_overlaps, uv_degenerate_faces
-from heatparam.atlas.repair import repair, union
+from heatparam.atlas.repair import half_edge_opposites, repair, union
 from heatparam.errors import MeshError
+from heatparam.mesh.topology import degenerate_faces
 from heatparam.metrics import distortion
 from heatparam.pipeline import atlas_stage, parameterize_disk
 
@@ -61,6 +62,9 @@ def test_scan_like_is_refused_by_the_single_map_and_repaired_losslessly():
     for c in rep.components:
         np.testing.assert_array_equal(c.vertex[c.F], F[c.faces])  # same corners, geometry unchanged
         np.testing.assert_array_equal(c.V, V[c.vertex])
+        np.testing.assert_array_equal(c.zero_area, degenerate_faces(c.V, c.F))  # the repair's, face for face
+    np.testing.assert_array_equal(rep.degenerate, degenerate_faces(V, F))
+    np.testing.assert_array_equal(rep.opp, half_edge_opposites(F))
 
 
 def test_scan_like_atlas():
@@ -118,6 +122,7 @@ def test_union_of_components_keeps_every_face_and_its_owner():
     ids = [1, 2, 3]
     part, owner = union([rep.components[i] for i in ids], ids)
     np.testing.assert_array_equal(part.vertex[part.F], F[part.faces])
+    np.testing.assert_array_equal(part.zero_area, degenerate_faces(part.V, part.F))
     np.testing.assert_array_equal(owner, np.repeat(ids, [len(rep.components[i].F) for i in ids]))
 
 

@@ -99,6 +99,28 @@ def test_packed_sort_is_the_stable_argsort():
         assert np.array_equal(xs, x[ref]) and xs.dtype == x.dtype
 
 
+@pytest.mark.parametrize("n", [50, 70_000])
+def test_connected_labels_are_scipys(n):
+    """``connected_labels`` numbers components by their smallest node, as scipy's ``connected_components`` does,
+    below ``COMPILED_MIN_NODES`` (scipy) and above it (the compiled union-find): random sparse graphs with isolated
+    nodes, self-links and repeated links, and a graph without links."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    from heatparam.mesh.topology import COMPILED_MIN_NODES, connected_labels
+
+    assert (n >= COMPILED_MIN_NODES) == (n > 1000)
+    rng = np.random.default_rng(n)
+    for links in (0, n // 3, n, 2 * n):
+        r, c = rng.integers(0, n, links), rng.integers(0, n, links)
+        r[: links // 10] = c[: links // 10]  # self-links
+        r, c = np.r_[r, c[:5]], np.r_[c, r[:5]]  # repeated links, both ways
+        count, labels = connected_labels(n, r, c)
+        ref_count, ref = connected_components(sp.coo_matrix((np.ones(len(r)), (r, c)), shape=(n, n)),
+                                              directed=False)
+        assert count == ref_count and np.array_equal(labels, ref) and labels.dtype == np.int64
+
+
 def test_degenerate_faces_collinear_and_point_like():
     from heatparam.mesh.topology import degenerate_faces
 

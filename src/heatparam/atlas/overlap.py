@@ -60,12 +60,14 @@ def uv_degenerate_faces(uv: np.ndarray, Fuv: np.ndarray) -> np.ndarray:
     return s == 0
 
 
-def folded_zero_area(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray | None = None) -> int:
+def folded_zero_area(V: np.ndarray, F: np.ndarray, uv: np.ndarray, Fuv: np.ndarray | None = None,
+                     zero_area: np.ndarray | None = None) -> int:
     """Zero-area 3D faces whose UV triangle is a triangle of the orientation opposite to the map's (that of the
     larger signed UV area): a fold over its neighbours that the metrics, which leave zero-area faces out, do not
-    count as a flip. Exact orientation test; a UV segment or point is no fold."""
+    count as a flip. Exact orientation test; a UV segment or point is no fold. ``zero_area`` (m,) bool: the
+    zero-area faces (``degenerate_faces(V, F)``) when known."""
     Fuv = F if Fuv is None else Fuv
-    zero = np.flatnonzero(degenerate_faces(V, F))
+    zero = np.flatnonzero(degenerate_faces(V, F) if zero_area is None else zero_area)
     if not len(zero):
         return 0
     P = uv[Fuv]

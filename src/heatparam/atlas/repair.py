@@ -14,11 +14,9 @@ import functools
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from heatparam.errors import MeshError
-from heatparam.mesh.topology import degenerate_faces, face_areas, unique_inverse
+from heatparam.mesh.topology import connected_labels, degenerate_faces, face_areas, sort_with_order, unique_inverse
 from heatparam.mesh.validate import ALL_ZERO_AREA, check_arrays, check_edges, check_vertex_fans, edge_structure
 
 __all__ = ["Component", "Repair", "half_edge_opposites", "repair", "union"]
@@ -30,13 +28,15 @@ class Component:
 
     V : (n_c,3) float64 vertex positions (copies of input vertices). F : (m_c,3) int64 triangles.
     faces : (m_c,) int64 input face row of each row of F. vertex : (n_c,) int64 input vertex of each row of V
-    (a split non-manifold vertex appears once per fan).
+    (a split non-manifold vertex appears once per fan). zero_area : (m_c,) bool, its zero-area faces
+    (``mesh.topology.degenerate_faces``), when known.
     """
 
     V: np.ndarray
     F: np.ndarray
     faces: np.ndarray
     vertex: np.ndarray
+    zero_area: np.ndarray | None = None
 
     @functools.cached_property
     def area(self) -> float:
@@ -52,6 +52,9 @@ class Repair:
     split_vertices: int = 0  # input vertices that became more than one vertex
     cut_edges: int = 0  # input edges that were not welded although two or more faces use them
     loose_points: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # unreferenced vertices
+    #: the input's zero-area faces (m,) and half-edge opposites (3m,) (:func:`half_edge_opposites`), for the report
+    degenerate: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    opp: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     def report(self) -> dict:
         return {
@@ -72,9 +75,7 @@ def half_edge_opposites(F: np.ndarray) -> np.ndarray:
     b = F[:, [1, 2, 0]].ravel()
     n = int(F.max()) + 1 if m else 1
     lo, hi = np.minimum(a, b), np.maximum(a, b)
-    key = lo * n + hi
-    order = np.argsort(key, kind="stable")
-    ks = key[order]
+    ks, order = sort_with_order(lo * n + hi)
     starts = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
     cnt = np.diff(np.r_[starts, len(ks)])
     opp = np.full(3 * m, -1, dtype=np.int64)
@@ -120,16 +121,17 @@ def repair(V: np.ndarray, F: np.ndarray) -> Repair:
     edges = edge_structure(C)
     check_edges(edges)
     check_vertex_fans(C, edges)
-    comps = _components(V, C, cls_vertex, fcomp, ncomp)
+    comps = _components(V, C, cls_vertex, fcomp, ncomp, degenerate)
     split = int((per_vertex > 1).sum())
     return Repair(components=comps, split_vertices=split, cut_edges=_unwelded_edges(F, opp, n),
-                  loose_points=np.flatnonzero(~referenced))
+                  loose_points=np.flatnonzero(~referenced), degenerate=degenerate, opp=opp)
 
 
-def _components(V: np.ndarray, C: np.ndarray, cls_vertex: np.ndarray, fcomp: np.ndarray, ncomp: int
-                ) -> list[Component]:
+def _components(V: np.ndarray, C: np.ndarray, cls_vertex: np.ndarray, fcomp: np.ndarray, ncomp: int,
+                degenerate: np.ndarray) -> list[Component]:
     """The components, largest first (ties: in component order): each one's faces ascending and its vertices in
-    welded-vertex order (``C`` (m,3) the welded vertex of each corner, ``cls_vertex`` the input vertex of each)."""
+    welded-vertex order (``C`` (m,3) the welded vertex of each corner, ``cls_vertex`` the input vertex of each;
+    ``degenerate`` (m,) the zero-area faces)."""
     sizes = np.bincount(fcomp, minlength=ncomp)
     rank = np.empty(ncomp, dtype=np.int64)
     rank[np.argsort(-sizes, kind="stable")] = np.arange(ncomp)  # each component's place in the output
@@ -146,7 +148,7 @@ def _components(V: np.ndarray, C: np.ndarray, cls_vertex: np.ndarray, fcomp: np.
     for c in range(ncomp):
         faces = forder[fstart[c]:fstart[c + 1]]
         vin = cls_vertex[vorder[vstart[c]:vstart[c + 1]]]
-        comps.append(Component(V=V[vin], F=local[C[faces]], faces=faces, vertex=vin))
+        comps.append(Component(V=V[vin], F=local[C[faces]], faces=faces, vertex=vin, zero_area=degenerate[faces]))
     return comps
 
 
@@ -161,10 +163,8 @@ def _weld(F: np.ndarray, opp: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     g, k = o // 3, o % 3
     r = np.concatenate([3 * f + j, 3 * f + (j + 1) % 3])
     c = np.concatenate([3 * g + (k + 1) % 3, 3 * g + k])
-    G = sp.coo_matrix((np.ones(len(r)), (r, c)), shape=(3 * m, 3 * m))
-    _, label = connected_components(G, directed=False)
-    Gf = sp.coo_matrix((np.ones(len(h)), (f, g)), shape=(m, m))
-    ncomp, fcomp = connected_components(Gf, directed=False)
+    _, label = connected_labels(3 * m, r, c)
+    ncomp, fcomp = connected_labels(m, f, g)
     uniq, first, inv = unique_inverse(label)
     new_id = np.empty(len(uniq), dtype=np.int64)
     new_id[np.argsort(first, kind="stable")] = np.arange(len(uniq))
@@ -185,6 +185,8 @@ def union(parts: list[Component], ids: list[int]) -> tuple[Component, np.ndarray
     """Several components as one (their disjoint union) and the component id (from ``ids``) of each of its faces."""
     offs = np.cumsum([0] + [len(c.V) for c in parts])
     F = np.vstack([c.F + o for c, o in zip(parts, offs[:-1], strict=True)])
+    known = all(c.zero_area is not None for c in parts)
     comp = Component(np.vstack([c.V for c in parts]), F, np.concatenate([c.faces for c in parts]),
-                     np.concatenate([c.vertex for c in parts]))
+                     np.concatenate([c.vertex for c in parts]),
+                     np.concatenate([c.zero_area for c in parts]) if known else None)
     return comp, np.repeat(np.asarray(ids, dtype=np.int64), [len(c.F) for c in parts])

@@ -10,17 +10,15 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from heatparam.errors import MeshError, TopologyError
 from heatparam.mesh.topology import (
+    connected_labels,
     face_areas,
     loop_length,
     loops_outer_first,
     repeated_vertex_faces,
     sort_with_order,
-    unique_ints,
     zero_area,
 )
 
@@ -219,17 +217,16 @@ def check_vertex_fans(F: np.ndarray, edges: Edges) -> None:
     direction, checked by :func:`check_edges`) from corner c2 of f2 to (c2+1)%3: so the edge's first end sits at
     corners c1 of f1 and (c2+1)%3 of f2, its second end at (c1+1)%3 of f1 and c2 of f2.
     """
-    m, n = edges.m, len(unique_ints(F))
+    m = edges.m
     h1, h2 = edges.interior_pairs
     f1, c1 = h1 % m, h1 // m
     f2, c2 = h2 % m, h2 // m
     r = np.concatenate([3 * f1 + c1, 3 * f1 + (c1 + 1) % 3])
     c = np.concatenate([3 * f2 + (c2 + 1) % 3, 3 * f2 + c2])
-    graph = sp.csr_matrix((np.ones(len(r)), (r, c)), shape=(3 * m, 3 * m))
-    _, comp = connected_components(graph, directed=False)
-    fans = unique_ints(F.ravel() * (3 * m) + comp)  # distinct (vertex, corner group) pairs
-    fans_per_vertex = np.bincount(fans // (3 * m), minlength=n)
-    nonman_v = fans_per_vertex > 1
+    fans, comp = connected_labels(3 * m, r, c)
+    fan_vertex = np.empty(fans, dtype=np.int64)  # a fan's corners are all at one vertex (the edges run opposite
+    fan_vertex[comp] = F.ravel()  # ways: check_edges)
+    nonman_v = np.bincount(fan_vertex) > 1
     if nonman_v.any():
         raise TopologyError(
             f"{int(nonman_v.sum())} non-manifold vertices (faces meeting at a single vertex, first: vertex "
@@ -241,8 +238,7 @@ def check_connected(edges: Edges, referenced: np.ndarray) -> None:
     """One connected component (over faces sharing a vertex = the edge graph on the referenced vertices)."""
     n = len(referenced)
     e = edges.order[edges.starts]  # one half-edge per edge
-    graph = sp.csr_matrix((np.ones(len(e)), (edges.he[e, 0], edges.he[e, 1])), shape=(n, n))
-    ncomp, _ = connected_components(graph, directed=False)
+    ncomp, _ = connected_labels(n, edges.he[e, 0], edges.he[e, 1])
     ncomp -= n - int(referenced.sum())
     if ncomp > 1:
         raise TopologyError(

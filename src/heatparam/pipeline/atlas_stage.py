@@ -41,7 +41,7 @@ from heatparam.atlas.grow import halves
 from heatparam.atlas.overlap import folded_zero_area, uv_degenerate_faces
 from heatparam.atlas.pack import pack_charts
 from heatparam.atlas.polish import polish_charts
-from heatparam.atlas.repair import Component, Repair, half_edge_opposites, repair, union
+from heatparam.atlas.repair import Component, Repair, repair, union
 from heatparam.atlas.segment import Segmentation, proxy_bound, segment
 from heatparam.errors import HeatparamError
 from heatparam.mesh.topology import degenerate_faces
@@ -150,7 +150,7 @@ def atlas(V: np.ndarray, F: np.ndarray, flatten_disk: DiskFlattener, *, max_dist
                                  "pack": pinfo["mode"]},
                   **_report(V, F, res, charts=maker.charts, rep=rep, components=components, tiny=tiny, pinfo=pinfo,
                             debris=debris),
-                  "warnings": _warnings(len(maker.charts), max_charts, rep, degenerate_faces(V, F).sum(), debris),
+                  "warnings": _warnings(len(maker.charts), max_charts, rep, int(rep.degenerate.sum()), debris),
                   "seconds": {"charts": t_flat, "total": time.perf_counter() - t0}}
     return res
 
@@ -314,7 +314,7 @@ class _ChartMaker:
         met = res.report["metrics"]
         Fuv = res.Fuv if res.Fuv is not None else comp.F
         kept = met["bijective"] and not met["flips"] and (bound is None or met["iso_mean"] <= bound)
-        if not kept or folded_zero_area(comp.V, comp.F, res.uv, Fuv):
+        if not kept or folded_zero_area(comp.V, comp.F, res.uv, Fuv, comp.zero_area):
             return None
         seams = res.report["method"].get("seams", {})
         return Chart(comp.faces, np.asarray(Fuv, dtype=np.int64), comp.vertex[res.uv_vertex], res.uv, ci,
@@ -435,7 +435,7 @@ def _report(V: np.ndarray, F: np.ndarray, res: AtlasResult, *, charts: list[Char
     """The atlas's report: repair (with ``scan``: a scan's main piece and debris), components, per chart and
     totals, packing."""
     A3 = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
-    opp = half_edge_opposites(F)
+    opp = rep.opp
     cut = cut_half_edges(F, res.Fuv, opp)  # per chart seam length: its border edges that are not mesh border
     seams = chart_seam_lengths(V, F, cut, res.chart, len(charts))
     per = [{"chart": i, "component": c.component, "faces": int(len(c.faces)), "area": float(A3[c.faces].sum()),
@@ -453,7 +453,7 @@ def _report(V: np.ndarray, F: np.ndarray, res: AtlasResult, *, charts: list[Char
         "flips": d["flips"],
         "overlapping_triangle_pairs": exact_overlap_count(res.uv, res.Fuv),
         "uv_degenerate_faces": int(uv_degenerate_faces(res.uv, res.Fuv).sum()),
-        "zero_area_faces": int(degenerate_faces(V, F).sum()),
+        "zero_area_faces": int(rep.degenerate.sum()),
         "packing_efficiency": pinfo["efficiency"],
         "area": area,
         "uv_scale": pinfo["scale"],
