@@ -182,7 +182,7 @@ def run_cli(mesh: Path, tmp: Path) -> dict:
     rss = re.search(r"Maximum resident set size \(kbytes\): (\d+)", r.stderr)
     rep = json.loads((tmp / "r.json").read_text())
     m, method = rep["metrics"], rep.get("method", {})
-    seams = method.get("seams", {})
+    seams = _kept_seams(method)
     cpu = sum(float(x) for x in re.findall(r"(?:User|System) time \(seconds\): ([\d.]+)", r.stderr))
     # each pass of a stage as the progress lines name it ("refine (map with seams): 33.96 s"): what a trial cost
     passes = [[k, float(v)] for k, v in re.findall(r"^heatparam: ([^:]+): ([\d.]+) s$", r.stderr, re.M)]
@@ -193,11 +193,21 @@ def run_cli(mesh: Path, tmp: Path) -> dict:
             **_seam_levels(method)}
 
 
+def _kept_seams(method: dict) -> dict:
+    """The seams decision of the map that makes the part: a scan's main piece kept whole by the atlas (its own
+    pipeline's: the atlas's top level says "charts of an atlas" for any scan), else the report's own."""
+    atlas = method.get("atlas", {})
+    scan = atlas.get("repair", {}).get("scan")
+    if scan:
+        return atlas["components"][scan["main_component"]].get("pipeline", {}).get("seams", {})
+    return method.get("seams", {})
+
+
 def _seam_levels(method: dict) -> dict:
     """The seams decision's inputs at both levels, where the report has them: fine iso means without / with seams,
     and the coarse levels' iso means of the kept map and (seams used) of the map without seams — whether a coarse
     comparison would have decided as the fine one did (issue 42's item 2)."""
-    seams = method.get("seams", {})
+    seams = _kept_seams(method)
     coarse = method.get("refine", {}).get("multilevel", {}).get("coarse_iso_mean")
     without = method.get("without_seams", {}).get("refine", {}).get("multilevel", {}).get("coarse_iso_mean")
     return {"iso_without": seams.get("iso_mean_without"), "iso_with": seams.get("iso_mean_with"),

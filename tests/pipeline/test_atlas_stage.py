@@ -350,6 +350,8 @@ def test_a_scan_keeps_its_main_piece_whole_and_its_debris_apart():
     assert "the main piece's map stretches the surface" in scan_lines[0] and "remove them" in scan_lines[0]
     assert not any(w.startswith("an atlas of") for w in r.report["warnings"])
     assert "refine" in rep["components"][0]["pipeline"]["timings_s"]  # where the main piece's time went
+    seams = rep["components"][0]["pipeline"]["seams"]  # its own seams decision, with what it compared
+    assert seams["used"] and seams["iso_mean_with"] == main[0]["iso_mean"] < seams["iso_mean_without"]
     again = parameterize(V, F)
     np.testing.assert_array_equal(again.uv, r.uv)
     np.testing.assert_array_equal(again.Fuv, r.Fuv)

@@ -14,7 +14,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-from heatparam.compiled import compiled, warmup
+from heatparam.compiled import COMPILED_MIN_FACES, compiled, warmup
 
 #: A face is degenerate (zero area) when |2 · area| <= this × (its longest edge)² (scale-free), or within the
 #: rounding of its coordinates (``ROUNDING_AREA``); the validation's count, the metrics' exclusion and the fill's
@@ -77,9 +77,8 @@ def unique_inverse(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 #: From this many nodes :func:`connected_labels` runs a compiled union-find: on a 286k-face scan's corner graph (859k
-#: nodes, 1.7M links) 0.02-0.06 s against scipy's 0.10-0.46 s. Below it, numba's import and cache load (0.1-0.5 s,
-#: once per process) would not pay off: three corners per face, as ``refine.energy.COMPILED_MIN_FACES``.
-COMPILED_MIN_NODES = 60_000
+#: nodes, 1.7M links) 0.02-0.06 s against scipy's 0.10-0.46 s. The corners of ``COMPILED_MIN_FACES`` faces.
+COMPILED_MIN_NODES = 3 * COMPILED_MIN_FACES
 
 
 def connected_labels(n: int, r: np.ndarray, c: np.ndarray) -> tuple[int, np.ndarray]:

@@ -193,6 +193,10 @@ def atlas_result(V: np.ndarray, F: np.ndarray, opts: Options, *, why: str, flatt
     return Result(res.uv, report, None, res.Fuv, res.uv_vertex, res.chart)
 
 
+#: the seams stage's iso means (without and with seams: a cut tried) that a chart's report keeps where they are
+_SEAM_ISO = ("iso_mean_without", "iso_mean_with")
+
+
 class _ChartMaker:
     """The charts of a mesh's components (``charts``, in order), each part flattened whole or segmented.
 
@@ -317,11 +321,13 @@ class _ChartMaker:
         if not kept or folded_zero_area(comp.V, comp.F, res.uv, Fuv, comp.zero_area):
             return None
         seams = res.report["method"].get("seams", {})
+        seams = {"used": seams.get("used"), "reason": seams.get("reason")} | {k: seams[k] for k in _SEAM_ISO
+                                                                              if k in seams}
         return Chart(comp.faces, np.asarray(Fuv, dtype=np.int64), comp.vertex[res.uv_vertex], res.uv, ci,
                      {"iso_mean": float(met["iso_mean"]), "flips": int(met["flips"]), "bijective": True,
                       "method": "pipeline (whole part)",
                       "pipeline": {"timings_s": res.report.get("timings_s", {}),
-                                   "seams": {k: seams.get(k) for k in ("used", "reason")}}})
+                                   "seams": seams}})
 
     def segmented(self, comp: Component, ci: int | np.ndarray, max_charts: int | None) -> tuple[int, dict]:
         """Segment a component (``atlas.segment``), polish the charts together, flatten a chart that fails with the

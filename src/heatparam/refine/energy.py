@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from heatparam.compiled import Compiled, compiled, warmup
+from heatparam.compiled import COMPILED_MIN_FACES, Compiled, compiled, warmup
 from heatparam.operators import intrinsic_areas, local_triangles, mollified_lengths
 
 
@@ -27,12 +27,10 @@ def hat_gradients(P: np.ndarray) -> np.ndarray:
     g[:, 0] = -(g[:, 1] + g[:, 2])
     return g
 
-#: From this many faces the per-face work of :func:`jacobians` and :func:`sd_newton_entries` runs in compiled loops:
-#: at 235k faces numpy's batched (2,3) @ (3,2) products took 33 ms against the loop's 2.3 ms, and the entries 91
-#: against 27 ms; a held-out part of 235k faces spent 2.0 s of 21 s in Jacobians (479 calls), 0.8 s compiled. Below
-#: it, numba's import and cache load (0.1-0.5 s, once per process) would not pay off. The Jacobians agree to
-#: rounding (1.8e-15 there), the entries bit for bit on this machine.
-COMPILED_MIN_FACES = 20_000
+# From COMPILED_MIN_FACES faces the per-face work of :func:`jacobians` and :func:`sd_newton_entries` runs in compiled
+# loops: at 235k faces the entries took 27 against numpy's 91 ms; a held-out part of 235k faces spent 2.0 s of 21 s in
+# Jacobians (479 calls), 0.8 s compiled. The Jacobians agree to rounding (1.8e-15 there), the entries bit for bit on
+# this machine.
 
 
 def jacobians(uv: np.ndarray, F: np.ndarray, g: np.ndarray) -> np.ndarray:
