@@ -224,8 +224,9 @@ def check_vertex_fans(F: np.ndarray, edges: Edges) -> None:
     r = np.concatenate([3 * f1 + c1, 3 * f1 + (c1 + 1) % 3])
     c = np.concatenate([3 * f2 + (c2 + 1) % 3, 3 * f2 + c2])
     fans, comp = connected_labels(3 * m, r, c)
-    fan_vertex = np.empty(fans, dtype=np.int64)  # a fan's corners are all at one vertex (the edges run opposite
-    fan_vertex[comp] = F.ravel()  # ways: check_edges)
+    # a fan's corners all sit at one vertex (its edges run opposite ways: check_edges), so any of them names it
+    fan_vertex = np.empty(fans, dtype=np.int64)
+    fan_vertex[comp] = F.ravel()
     nonman_v = np.bincount(fan_vertex) > 1
     if nonman_v.any():
         raise TopologyError(

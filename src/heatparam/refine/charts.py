@@ -24,7 +24,7 @@ from heatparam.mesh.topology import boundary_loops
 from heatparam.refine.energy import det, jacobians, surface_gradients
 from heatparam.refine.newton import EXCESS_TOL, ScaffoldUse, polish
 
-__all__ = ["CHART_GAP", "EXCESS_TOL", "arrange", "refine_charts"]
+__all__ = ["CHART_GAP", "arrange", "refine_charts"]
 
 #: gap between two charts' boxes while they are polished together, as a fraction of the larger box's diagonal
 CHART_GAP = 0.25
