@@ -507,6 +507,26 @@ def test_seams_decided_where_the_uncut_coarse_level_paused(halftunnel, monkeypat
     assert sp["iso_mean_without"] >= full.report["method"]["seams"]["iso_mean_without"]
 
 
+def test_a_seams_trial_starts_from_its_raw_prolongation_a_requested_cut_from_a_smoothed_one(halftunnel,
+                                                                                              monkeypatch):
+    """Coarse-to-fine forced on halftunnel: the cut map of ``seams auto`` is a trial, judged against a provisional
+    map without seams, and its fine level starts from the raw prolongation (``Pausing.raw_start``); the cut map of
+    ``seams holes`` is no trial, and its start is smoothed (``refine.smoother``), to a lower energy."""
+    from heatparam.refine import multilevel
+
+    V, F = halftunnel
+    monkeypatch.setattr(multilevel, "COARSE_MIN", 400)  # the cut mesh's 142 boundary vertices: under half of it
+    auto = parameterize(V, F, refine_multilevel=400)
+    holes = parameterize(V, F, refine_multilevel=400, seams="holes")
+    assert auto.report["method"]["seams"]["used"] and holes.report["method"]["seams"]["used"]
+    ml = auto.report["method"]["refine"]["multilevel"]
+    assert ml["used"] and "smoothing" not in ml
+    sm = holes.report["method"]["refine"]["multilevel"]["smoothing"]
+    assert sm["sweeps"] >= 1 and sm["energy_after"] < sm["energy_before"]
+    assert holes.report["method"]["refine"]["polish"]["energy_start"] == pytest.approx(sm["energy_after"])
+    assert holes.report["metrics"]["bijective"]
+
+
 def test_seams_deterministic(halftunnel, halftunnel_maps):
     V, F = halftunnel
     again = parameterize(V, F)

@@ -101,9 +101,12 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat, flatten: Cal
             starts["projection_reopened"] = x
     # the cut map, when paused, keeps its factorization: it is usually kept and finished next (4.5 s to rebuild
     # at 311k vertices); when the map without seams is kept instead, the cut map is dropped first. A trial pauses
-    # first where its coarse level hands over (:func:`coarse_bound`)
+    # first where its coarse level hands over (:func:`coarse_bound`). A trial's fine level starts from the raw
+    # prolongation: :func:`_decide` may read the map without seams where it is provisional (``multilevel.Levels``),
+    # with a floor measured on fine pauses that a provisional map can undercut (held-out 1003: 1.3678 provisional,
+    # 1.1165 finished), and there a smoothed trial (``refine.smoother``: 1.1778, raw 1.6931) was kept over it
     excess = seam_pause(surface, opts).excess
-    pausing = Pausing(excess, park=False, fine_start=excess > 0)
+    pausing = Pausing(excess, park=False, fine_start=excess > 0, raw_start=excess > 0)
     # where no start of the cut mesh is bijective, its smoothed conformal layout is, its slits reopened like the
     # conformal one's (a noisy border folds both), before Tutte's
     reopen = functools.partial(_reopened, cut_surface=cut.surface, source=cut.source)

@@ -71,12 +71,15 @@ class Pausing(NamedTuple):
     this (``multilevel.Levels``). park : a paused fine polish frees its factorization (False: it keeps it, for a
     trial that is usually finished next). fine_start : the polish also pauses before the fine level's first
     iteration when a coarse level gave its start (the seams stage compares the two maps' coarse levels first).
+    raw_start : the fine level starts from its coarse level's prolongation as it is, not smoothed
+    (``multilevel.LevelSettings.smooth``: the seams stage's cut trial, ``pipeline.seams.seams_stage``).
     """
 
     excess: float = 0.0
     coarse: float = 0.0
     park: bool = True
     fine_start: bool = False
+    raw_start: bool = False
 
 
 NO_PAUSE = Pausing()
@@ -146,7 +149,8 @@ class Refinement:
         with _one_openblas_thread():
             settings = LevelSettings(min_vertices=params.multilevel, max_iters=params.max_iters, tol=params.tol,
                                      backend=params.solver, pause_excess=pausing.excess, pause_coarse=pausing.coarse,
-                                     park=pausing.park, pause_fine_start=pausing.fine_start)
+                                     park=pausing.park, pause_fine_start=pausing.fine_start,
+                                     smooth=not pausing.raw_start)
             # a start whose coarse level stalls is tried again from the fallback's, unless it is that or Tutte
             restart = None if start["layout"] in ("conformal_smoothed", "tutte") else fallback.start
             self.polish, self._report["multilevel"] = multilevel_polish(V, F, x, disk.loops, g, area, settings,
