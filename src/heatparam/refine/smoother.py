@@ -151,8 +151,6 @@ def _sweep(uv, F, g, w, ptr, faces, corner, movable, scratch):  # pragma: no cov
     return gain
 
 
-
-
 @warmup
 def _warm() -> None:
     """The compiled sweep run once on one triangle (:func:`heatparam.compiled.warm_all`)."""
