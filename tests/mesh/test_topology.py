@@ -160,3 +160,17 @@ def test_boundary_edges_memo_follows_the_faces_content():
     G[0] = G[1]  # in place: face 0's edges lose a face, face 1's gain one
     assert np.array_equal(boundary_edges(G), _boundary_edges(G))
     assert not np.array_equal(boundary_edges(G), again)
+
+
+def test_vertex_corners_group_each_vertex_corners_in_face_order():
+    from heatparam.mesh.topology import vertex_corners
+
+    V, F = flat_disk(6)
+    n = len(V) + 2  # two vertices no face uses: empty groups
+    corners, starts = vertex_corners(F, n)
+    assert len(starts) == n + 1 and starts[0] == 0 and starts[-1] == 3 * len(F)
+    assert np.array_equal(corners, np.argsort(F.ravel(), kind="stable"))
+    for w in (0, 5, len(V) - 1, len(V), len(V) + 1):
+        own = corners[starts[w]:starts[w + 1]]
+        assert np.array_equal(own, np.flatnonzero(F.ravel() == w))
+        assert (F[own // 3, own % 3] == w).all()

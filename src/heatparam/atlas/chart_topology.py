@@ -12,7 +12,7 @@ import igl
 import numpy as np
 
 from heatparam.atlas.repair import half_edge_opposites
-from heatparam.mesh.topology import degenerate_faces
+from heatparam.mesh.topology import degenerate_faces, vertex_corners
 
 __all__ = ["CONE_DEFECT", "DEFAULT_CREASE", "Topology", "chart_mesh", "glue_inside"]
 
@@ -75,9 +75,8 @@ class Topology:
     def vertex_faces(self) -> tuple[np.ndarray, np.ndarray]:
         """The faces around each vertex, made once: (faces, starts), vertex w's are ``faces[starts[w]:starts[w+1]]``."""
         if not hasattr(self, "_vf"):
-            order = np.argsort(self.F.ravel(), kind="stable")
-            starts = np.searchsorted(self.F.ravel()[order], np.arange(len(self.V) + 1))
-            self._vf = (order // 3, starts)
+            corners, starts = vertex_corners(self.F, len(self.V))
+            self._vf = (corners // 3, starts)
         return self._vf
 
     @classmethod

@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 from heatparam.compiled import compiled, warmup
-from heatparam.mesh.topology import sort_with_order
+from heatparam.mesh.topology import vertex_corners
 from heatparam.refine.energy import normalized_energy
 
 #: Sweeps stop once a sweep gains more than this fraction of the previous sweep's gain: the smoother has then
@@ -46,9 +46,8 @@ class Smoother:
         self.F, self.area = np.ascontiguousarray(F, dtype=np.int64), area
         self.g = np.ascontiguousarray(g, dtype=np.float64)
         self.w = np.ascontiguousarray(area / area.sum(), dtype=np.float64)
-        corners, order = sort_with_order(self.F.ravel())
-        self.faces, self.corner = order // 3, order % 3  # each vertex's faces and its corner in each, vertex by vertex
-        self.ptr = np.searchsorted(corners, np.arange(n + 1))
+        corners, self.ptr = vertex_corners(self.F, n)
+        self.faces, self.corner = corners // 3, corners % 3  # each vertex's faces and its corner in each
         self.movable = np.ones(n, dtype=np.bool_)
         self.movable[fixed] = False
         self.scratch = np.empty((max(1, int(np.diff(self.ptr).max(initial=1))), 8))
