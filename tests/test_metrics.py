@@ -418,6 +418,40 @@ def test_weighted_quantile_is_the_stable_sort_s():
                 assert _weighted_quantile(x, w, q) == reference(x, w, q)
 
 
+def test_weighted_quantile_of_a_large_array_sorts_its_tail_only_and_still_finds_the_same_value(monkeypatch):
+    """From QUANTILE_TAIL_MIN values only those above a pivot are sorted: the same value as the full stable sort,
+    with ties, with infinities, and where the tail's weight falls short (most weight on small values: the full
+    sort again)."""
+    import heatparam.metrics as M
+
+    rng = np.random.default_rng(9)
+    sorted_sizes: list[int] = []
+    argsort = np.argsort
+    monkeypatch.setattr(M.np, "argsort", lambda a, **kw: sorted_sizes.append(len(a)) or argsort(a, **kw))
+
+    def reference(x, w, q):
+        order = argsort(x, kind="stable")
+        cw = np.cumsum(w[order])
+        return float(x[order[min(int(np.searchsorted(cw, q * cw[-1], side="left")), len(x) - 1)]])
+
+    for case in range(60):
+        n = int(rng.integers(M.QUANTILE_TAIL_MIN, 30_000))
+        x = 1.0 + rng.random(n) ** rng.uniform(0.2, 5.0)
+        if case % 3 == 1:  # exact isometries and flipped faces' inf
+            x[rng.random(n) < 0.3] = 1.0
+            x[rng.random(n) < rng.uniform(0.0, 0.4)] = np.inf
+        w = rng.random(n) ** rng.uniform(0.1, 8.0)
+        if case % 3 == 2:  # the weight on the smallest values: the tail holds less than 1 - q of it
+            w[x < np.quantile(x, 0.5)] *= 1e3
+        for q in (0.5, 0.95, 0.99, 1.0):
+            sorted_sizes.clear()
+            assert M._weighted_quantile(x, w, q) == reference(x, w, q)
+            if q == 0.95 and case % 3 == 0:
+                assert max(sorted_sizes) <= 0.25 * n  # the top fifth only
+            if case % 3 == 2 and q == 0.95:
+                assert max(sorted_sizes) == n  # fell back to the full sort
+
+
 def test_layout_error_rigid_and_scale():
     uv = datasets.cone_s_strip().uv_true
     th = 0.7

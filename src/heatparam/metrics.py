@@ -65,6 +65,11 @@ __all__ = [
 ]
 
 _P = 0.95  # percentile reported as *_p95
+#: :func:`_weighted_quantile` sorts only the values above the one of rank 1 - this × (1 - q) (the top 20% for a
+#: p95), unless their weight falls short of 1 - q (weights vary up to ~4x across a scan); ...
+QUANTILE_TAIL = 4.0
+#: ... in arrays of at least this many values (below, one sort is as fast)
+QUANTILE_TAIL_MIN = 4096
 _CELL_MAX = 32  # a grid cell with more edges than this is refined (boundary_crossings)
 _MAX_DEPTH = 4  # refinement levels of the crossing grid
 _REFINE = 4.0  # cell size divisor per refinement level
@@ -262,14 +267,25 @@ def per_face_distortion(
 
 
 def _weighted_quantile(x: np.ndarray, w: np.ndarray, q: float) -> float:
-    """Smallest value whose cumulative weight fraction reaches ``q`` (inf values sort last). Sorted by numpy's
-    quicksort, which without ties is the stable sort's unique order (618k values: 18 vs 78 ms); with ties (flipped
-    faces' inf, exact isometries) by the stable sort, so that the weights add up in the same order."""
+    """Smallest value whose cumulative weight fraction reaches ``q`` (inf values sort last).
+
+    Only the values from a pivot up are sorted when the weight below the pivot is short of ``q`` (the answer is
+    then among them): the pivot is the value of rank ``1 - QUANTILE_TAIL × (1 - q)`` (``np.partition``, linear).
+    Sorted by numpy's quicksort, which without ties is the stable sort's unique order; with ties (flipped faces'
+    inf, exact isometries) by the stable sort, so that the weights add up in the same order. A p95 of 378k faces:
+    12 ms against 40 ms for a full sort."""
+    base, k = 0.0, int(len(x) * (1.0 - QUANTILE_TAIL * (1.0 - q)))
+    if len(x) >= QUANTILE_TAIL_MIN and 0 < k < len(x):
+        pivot = np.partition(x, k)[k]
+        low = x < pivot
+        below = float(w[low].sum())
+        if below < q * float(w.sum()):
+            x, w, base = x[~low], w[~low], below
     order = np.argsort(x)
     xs = x[order]
     if len(x) > 1 and (xs[1:] == xs[:-1]).any():
         order = np.argsort(x, kind="stable")
-    cw = np.cumsum(w[order])
+    cw = base + np.cumsum(w[order])
     i = int(np.searchsorted(cw, q * cw[-1], side="left"))
     return float(x[order[min(i, len(x) - 1)]])
 
