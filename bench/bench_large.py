@@ -250,7 +250,25 @@ def family_summary(rows: list[dict]) -> str:
             f"crossings {sum(r['ours']['crossings'] > 0 for r in rows)}; iso mean vs the best bijective peer: median "
             f"{100 * np.median(deltas) if len(deltas) else float('nan'):+.2f}%, worst "
             f"{100 * deltas.max() if len(deltas) else float('nan'):+.2f}% ({len(deltas)} parts with a bijective peer)"
-            + _cpu_ratios(rows))
+            + _cpu_ratios(rows) + _not_kept(rows))
+
+
+def not_kept_seconds(ours: dict) -> float:
+    """Seconds spent on the map the seams stage did not keep, from the progress lines' passes: the map without
+    seams when the cut map was kept, else the cut trial (cut, conformal start, its passes); 0 when none was tried."""
+    if ours["seams"] == "used":
+        return sum(s for name, s in ours["passes"] if "(map without seams" in name)
+    if ours["seams"] == "tried":
+        return sum(s for name, s in ours["passes"] if "(map with seams" in name or name.startswith("seams ("))
+    return 0.0
+
+
+def _not_kept(rows: list[dict]) -> str:
+    """The seconds spent on maps not kept, over the parts where the seams stage made two maps."""
+    t = np.array([not_kept_seconds(r["ours"]) for r in rows if r["ours"]["seams"] in ("used", "tried")])
+    total = sum(r["ours"]["seconds"] for r in rows)
+    return (f"; on maps not kept ({len(t)} parts with two maps): median {np.median(t):.1f} s, max {t.max():.1f} s, "
+            f"{t.sum():.0f} of {total:.0f} s in all" if len(t) else "")
 
 
 def _cpu_ratios(rows: list[dict]) -> str:
