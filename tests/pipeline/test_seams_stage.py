@@ -75,3 +75,42 @@ def test_a_spiked_border_gives_the_cut_mesh_its_smoothed_conformal_start(monkeyp
     assert start["layout"] == "conformal_smoothed" and start["energy"]["conformal_smoothed"] < 2.0
     assert r.seamed and r.report["metrics"]["bijective"]
     assert [rp.func for rp in repairs if rp is not None] == [seams._reopened]
+
+
+def _noisy_cap():
+    """The cap of :func:`_cap` with depth noise (0.3 × the edge along z, as a range image's): its projection beats
+    its conformal layout as a start."""
+    s = datasets.curved_cap_with_holes(sphere_radius=1.5, h=0.05)
+    V = s.V.copy()
+    V[:, 2] += 0.3 * 0.05 * np.random.default_rng(0).standard_normal(len(V))
+    return V, s.F
+
+
+def test_the_cut_mesh_computes_no_conformal_layout_where_the_projection_started_the_map_without_seams(monkeypatch):
+    """Where the map without seams started from the projection (lower in energy than the conformal layout) and
+    the cut mesh's projection, slits reopened, is bijective, the cut mesh's conformal layout is not computed: the
+    same map as with it (it lost again), the reason in the report; where the conformal layout started the map
+    without seams, the cut mesh's is computed."""
+    from heatparam.pipeline.surface import Surface
+
+    V, F = _noisy_cap()
+    a = parameterize(V, F, seams="holes", mds_start="never")
+    method = a.report["method"]
+    assert method["without_seams"]["refine"]["start"]["layout"] == "projection"
+    assert "not computed: the map without seams started from the projection" in \
+        method["seams"]["conformal_reopened"]["reason"]
+    assert method["refine"]["start"]["layout"] == "projection_reopened"
+    assert "conformal" not in method["refine"]["start"]["energy"]
+
+    monkeypatch.setattr(Surface, "conformal_skipped", property(lambda s: None, lambda s, v: None), raising=False)
+    b = parameterize(V, F, seams="holes", mds_start="never")
+    start = b.report["method"]["refine"]["start"]
+    assert start["layout"] == "projection_reopened" and start["energy"]["conformal"] > start["energy"][
+        "projection_reopened"]
+    assert np.array_equal(a.uv, b.uv) and np.array_equal(a.Fuv, b.Fuv)
+    monkeypatch.undo()
+
+    V, F = _cap()
+    c = parameterize(V, F, seams="holes", mds_start="never")
+    assert c.report["method"]["without_seams"]["refine"]["start"]["layout"] == "conformal"
+    assert "conformal" in c.report["method"]["refine"]["start"]["energy"]

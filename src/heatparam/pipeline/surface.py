@@ -8,6 +8,7 @@ import functools
 
 import numpy as np
 
+from heatparam.errors import HeatparamError
 from heatparam.layout.conformal import SCP_MAX_ITERS, ConformalLayouts
 from heatparam.mesh.frame import UnitFrame, frame_of
 from heatparam.mesh.topology import Compaction, compact
@@ -25,7 +26,9 @@ class Surface:
     ``release_layouts()``.
     ``conformal_method``, ``conformal_max_solves``: how the spectral layouts are solved
     (``layout.conformal.spectral_conformal``'s ``method`` and ``max_solves``; the seams stage's cut-open mesh uses
-    ``inverse`` and ``SCP_CUT_MAX_ITERS``).
+    ``inverse`` and ``SCP_CUT_MAX_ITERS``). ``conformal_skipped``: why the conformal layout is not computed (None:
+    it is); ``conformal()`` then raises a ``HeatparamError`` saying so, which the start checks report as that
+    candidate's failure (the seams stage sets it where the start is known without it).
     """
 
     def __init__(self, V: np.ndarray, F: np.ndarray, info: MeshInfo, frame: UnitFrame | None = None,
@@ -33,6 +36,7 @@ class Surface:
         self.V, self.F, self.info = V, F, info
         self.frame = frame if frame is not None else UnitFrame(0, np.zeros(3))
         self.conformal_method, self.conformal_max_solves = conformal_method, conformal_max_solves
+        self.conformal_skipped: str | None = None
         # the conformal layouts' factorization, kept from conformal() to smoothed_conformal() until release_layouts()
         self._layouts = ConformalLayouts(F, method=conformal_method, max_solves=conformal_max_solves)
 
@@ -52,6 +56,8 @@ class Surface:
     @functools.cache  # noqa: B019 - one Surface per flattening; the cache lives exactly as long as it
     def conformal(self) -> np.ndarray:
         """The conformal layout (``layout.conformal.conformal_layout``: spectral, no pins), (n,2), computed once."""
+        if self.conformal_skipped is not None:
+            raise HeatparamError(f"not computed: {self.conformal_skipped}")
         uv0 = self._layouts.layout(self.V)
         uv0.setflags(write=False)
         return uv0

@@ -137,7 +137,7 @@ def lscm_start(V: np.ndarray, F: np.ndarray, conformal: Callable[[], np.ndarray]
     g, area = surface if surface is not None else surface_gradients(V, F)
     try:
         xl = np.array(conformal() if conformal is not None else conformal_layout(V, F))
-    except HeatparamError as exc:  # a degenerate mesh: the conformal layout is only a candidate, MDS or Tutte serve
+    except HeatparamError as exc:  # a degenerate mesh, or not computed: only a candidate, MDS or Tutte serve
         return LscmStart(None, -1, -1, None, str(exc))
     if not np.isfinite(xl).all():  # never hand NaN on: the candidate is dropped, MDS or Tutte still serve
         return LscmStart(None, -1, -1, None, "the conformal layout has non-finite coordinates")
