@@ -31,9 +31,9 @@ from heatparam.refine.reopen_slits import reopen_crossing_slits
 from heatparam.refine.start import separated_boundary, unflipped
 
 #: Why the cut-open mesh's conformal layout is not computed: its projection, the same map with the slits reopened
-#: (``layout.projection``), is bijective and beat the conformal layout as the start of the map without seams. Cutting
-#: lowers the conformal layout's energy, but on no tuning part with holes (seeds 0-29 of ``bench/large_family.py``)
-#: below the projection's where it had not been before; the conformal layout costs 1-3 s at 200k-400k faces.
+#: (``layout.projection``), is bijective and beat the conformal layout as the start of the map without seams. There
+#: it beat the cut mesh's conformal layout (inverse iteration, unconverged) too on 13 of 13 tuning parts with holes
+#: (seeds 0-29 of ``bench/large_family.py``), which costs 1-3 s at 200k-400k faces.
 PROJECTION_STARTED = ("the map without seams started from the projection onto the mean plane, lower in energy than "
                       "the conformal layout, and the cut mesh's projection (its slits reopened) is bijective")
 
@@ -100,7 +100,7 @@ def seams_stage(surface: Surface, opts, prog: Progress, flat: Flat, flatten: Cal
     starts: dict[str, np.ndarray] = {}
     if opts.refine != "none":
         projected, rep["projection_reopened"] = _reopened_projection(cut.surface, cut.source)
-        if projected is not None and flat.method["refine"]["start"].get("layout") == "projection":
+        if projected is not None and flat.method["refine"].get("start", {}).get("layout") == "projection":
             cut.surface.conformal_skipped = PROJECTION_STARTED
         with prog.stage("seams", "conformal start"):
             x, rep["conformal_reopened"] = _reopened_conformal(cut.surface, cut.source)
