@@ -287,6 +287,7 @@ def loop_length(V: np.ndarray, loop: np.ndarray) -> float:
     """Length of a closed vertex loop in 3D."""
     return float(np.linalg.norm(V[loop] - V[np.roll(loop, -1)], axis=1).sum())
 
+
 def vertex_corners(F: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """The corners of F (m,3) around each of n vertices: (corners (3m,), starts (n+1,)); vertex w's are
     ``corners[starts[w]:starts[w+1]]`` in face order, corner k being face k // 3's (k % 3)-th vertex."""

@@ -44,13 +44,21 @@ def jacobians(uv: np.ndarray, F: np.ndarray, g: np.ndarray) -> np.ndarray:
 
 
 @compiled()
+def face_jacobian(uv, F, g, f):  # pragma: no cover - compiled
+    """Face f's Jacobian (J00, J01, J10, J11) of the map to ``uv``: J[r,s] = Σ_i uv[F[f,i],r] g[f,i,s], for compiled
+    per-face loops (:func:`_jacobian_loop`, ``refine.smoother``)."""
+    a, b, c = F[f, 0], F[f, 1], F[f, 2]
+    return (uv[a, 0] * g[f, 0, 0] + uv[b, 0] * g[f, 1, 0] + uv[c, 0] * g[f, 2, 0],
+            uv[a, 0] * g[f, 0, 1] + uv[b, 0] * g[f, 1, 1] + uv[c, 0] * g[f, 2, 1],
+            uv[a, 1] * g[f, 0, 0] + uv[b, 1] * g[f, 1, 0] + uv[c, 1] * g[f, 2, 0],
+            uv[a, 1] * g[f, 0, 1] + uv[b, 1] * g[f, 1, 1] + uv[c, 1] * g[f, 2, 1])
+
+
+@compiled(face_jacobian)
 def _jacobian_loop(uv, F, g, J):  # pragma: no cover - compiled
     """:func:`jacobians` into J (m,2,2), one face at a time."""
     for f in range(F.shape[0]):
-        a, b, c = F[f, 0], F[f, 1], F[f, 2]
-        for r in range(2):
-            for s in range(2):
-                J[f, r, s] = uv[a, r] * g[f, 0, s] + uv[b, r] * g[f, 1, s] + uv[c, r] * g[f, 2, s]
+        J[f, 0, 0], J[f, 0, 1], J[f, 1, 0], J[f, 1, 1] = face_jacobian(uv, F, g, f)
 
 
 def det(J: np.ndarray) -> np.ndarray:

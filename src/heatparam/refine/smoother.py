@@ -21,7 +21,7 @@ import numpy as np
 
 from heatparam.compiled import compiled, warmup
 from heatparam.mesh.topology import vertex_corners
-from heatparam.refine.energy import normalized_energy
+from heatparam.refine.energy import face_jacobian, normalized_energy
 
 #: Sweeps stop once a sweep gains more than this fraction of the previous sweep's gain: the smoother has then
 #: removed the local error and converges at the slow rate of the smooth error left (tuning seed 21: gains 0.083,
@@ -98,7 +98,7 @@ def _step(scratch, count, dx, dy, e0):  # pragma: no cover - compiled
     return 0.0, 0.0
 
 
-@compiled(_step)
+@compiled(_step, face_jacobian)
 def _sweep(uv, F, g, w, ptr, faces, corner, movable, scratch):  # pragma: no cover - compiled
     """:meth:`Smoother.sweep`. For a vertex at corner i of face f, moved by d: J(d) = J + d g_iᵀ, so |J(d)|² =
     |J|² + aᵀd + |g_i|²|d|² with a = 2 J g_i and det J(d) = det J + cᵀd with c = adj(J)ᵀ g_i (linear); with
@@ -112,11 +112,7 @@ def _sweep(uv, F, g, w, ptr, faces, corner, movable, scratch):  # pragma: no cov
         gx = gy = hxx = hxy = hyy = e0 = 0.0
         for k in range(k0, k1):
             f, i = faces[k], corner[k]
-            a, b, c = F[f, 0], F[f, 1], F[f, 2]
-            j00 = uv[a, 0] * g[f, 0, 0] + uv[b, 0] * g[f, 1, 0] + uv[c, 0] * g[f, 2, 0]
-            j01 = uv[a, 0] * g[f, 0, 1] + uv[b, 0] * g[f, 1, 1] + uv[c, 0] * g[f, 2, 1]
-            j10 = uv[a, 1] * g[f, 0, 0] + uv[b, 1] * g[f, 1, 0] + uv[c, 1] * g[f, 2, 0]
-            j11 = uv[a, 1] * g[f, 0, 1] + uv[b, 1] * g[f, 1, 1] + uv[c, 1] * g[f, 2, 1]
+            j00, j01, j10, j11 = face_jacobian(uv, F, g, f)
             g0, g1 = g[f, i, 0], g[f, i, 1]
             dt = j00 * j11 - j01 * j10
             f2 = j00 * j00 + j01 * j01 + j10 * j10 + j11 * j11
