@@ -29,14 +29,23 @@ def hat_gradients(P: np.ndarray) -> np.ndarray:
 
 # From COMPILED_MIN_FACES faces the per-face work of :func:`jacobians` and :func:`sd_newton_entries` runs in compiled
 # loops: at 235k faces the entries took 27 against numpy's 91 ms; a held-out part of 235k faces spent 2.0 s of 21 s in
-# Jacobians (479 calls), 0.8 s compiled. The Jacobians agree to rounding (1.8e-15 there), the entries bit for bit on
-# this machine.
+# Jacobians (479 calls), 0.8 s compiled. Both give the same bits (the entries on this machine; the Jacobians by the
+# same sums in the same order).
 
 
 def jacobians(uv: np.ndarray, F: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """Per-face Jacobians (m,2,2) of the map to ``uv`` (n,2): J[f,a,c] = Σ_i uv[F[f,i],a] g[f,i,c]."""
+    """Per-face Jacobians (m,2,2) of the map to ``uv`` (n,2): J[f,a,c] = Σ_i uv[F[f,i],a] g[f,i,c].
+
+    A face's J is the same bits however many faces come with it (compiled or numpy, both summing i = 0, 1, 2 in
+    turn): a zero-area face laid out flat has det J at round-off, and a coarse level that holds it
+    (``multilevel.CoarseLevel``) must see the sign its mesh saw (numpy's matmul, summing otherwise, flipped one)."""
     if len(F) < COMPILED_MIN_FACES:
-        return np.matmul(uv[F].transpose(0, 2, 1), g)
+        X = uv[F]
+        J = np.empty((len(F), 2, 2))
+        for a in range(2):
+            for c in range(2):
+                J[:, a, c] = X[:, 0, a] * g[:, 0, c] + X[:, 1, a] * g[:, 1, c] + X[:, 2, a] * g[:, 2, c]
+        return J
     J = np.empty((len(F), 2, 2))
     _jacobian_loop(np.ascontiguousarray(uv, dtype=np.float64), np.ascontiguousarray(F),
                    np.ascontiguousarray(g, dtype=np.float64), J)

@@ -228,26 +228,27 @@ def untangle_flips(y: np.ndarray, V: np.ndarray, F: np.ndarray, g: np.ndarray, l
             return z, total
     return None, total
 
-def boundary_faces(F: np.ndarray, boundary: np.ndarray) -> np.ndarray:
-    """The triangles of F (m,3) whose three corners are all boundary vertices (``boundary`` (n,) bool), (k,3)."""
-    return F[boundary[F].all(axis=1)]
+def ears(F: np.ndarray, boundary: np.ndarray) -> np.ndarray:
+    """The rows (k,) of F (m,3) whose three corners are all boundary vertices (``boundary`` (n,) bool)."""
+    return np.flatnonzero(boundary[F].all(axis=1))
 
 class CoarseLevel:
     """The coarse level of a mesh (V (n,3), F (m,3)) laid out bijectively at ``x`` (n,2): :meth:`build` it,
     :meth:`polish` it, :meth:`prolongate` its map to every vertex of the mesh, :meth:`finish` it after a pause;
     :meth:`start` does all four as the fine polish needs.
 
-    Every level keeps all boundary vertices, which the repair never moves; so a triangle whose three corners are
-    boundary vertices (plenty in a triangulation of the coarse vertices) could come out of the coarse polish
-    flipped beyond repair, unless the coarse polish keeps it positive: such triangles (and the mesh's own
-    ``guards`` (k,3)) are passed down as guards, triangles without energy that the line search keeps positive.
+    Every level keeps all boundary vertices, which the repair never moves; so a fine triangle whose three corners
+    are boundary vertices (an ear: a border sliver, a seam's turn) is carried by no coarse triangle and could come
+    out of the coarse polish flipped beyond repair, or squeezed to nothing. Such ears join the coarse mesh's energy
+    with their own rest shape and area (:meth:`polish`), so the coarse polish keeps them positive as it keeps its
+    own triangles, and a coarser level of its own takes them, and its own ears, along.
     ``report`` is this level's part of the report."""
 
     def __init__(self, V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.ndarray], g: np.ndarray,
-                 settings: LevelSettings, *, progress=None, guards: np.ndarray | None = None):
+                 area: np.ndarray, settings: LevelSettings, *, progress=None):
         self.t0 = time.perf_counter()
-        self.V, self.F, self.x, self.loops, self.g = V, F, x, loops, g
-        self.settings, self.progress, self.guards = settings, progress, guards
+        self.V, self.F, self.x, self.loops, self.g, self.area = V, F, x, loops, g, area
+        self.settings, self.progress = settings, progress
         self.report: dict = {}
         self.run: Polish | Levels | None = None
         self.paused_at: float | None = None
@@ -278,17 +279,26 @@ class CoarseLevel:
         return None
 
     def polish(self) -> None:
-        """Polish the coarse mesh from ``x`` (coarse-to-fine itself when large; it may pause as the settings say)."""
-        ids, T = self.ids, self.T
-        gc, ac = surface_gradients(self.V[ids], T)
-        self.e0 = normalized_energy(self.x[ids], T, gc, ac)  # this level's start, before a coarser level of its own
+        """Polish the coarse mesh from ``x`` (coarse-to-fine itself when large; it may pause as the settings say).
+
+        Its energy is that of the coarse triangles and of the ears (class docstring), each ear with the mesh's own
+        hat gradients and area, so that it is as positive as in ``x`` (a zero-area ear that a projection keeps
+        flat: its det J is positive by round-off only). Ears without energy, only kept positive by the line search,
+        stalled the coarse level of a cut mesh: a Newton direction that does not see an ear pushes it to collapse
+        at every iteration and the barrier cuts each step to a tenth of the last (tuning seed 16 of
+        ``bench/large_family.py``: stalled at iso mean 1.1746 where it reaches 1.0127)."""
+        ids = self.ids
         local = np.full(len(self.V), -1, dtype=np.int64)
         local[ids] = np.arange(len(ids))
-        ears = boundary_faces(self.F if self.guards is None else np.vstack([self.F, self.guards]), self.locked)
+        rows = ears(self.F, self.locked)
+        T = np.vstack([self.T, local[self.F[rows]]])
+        gc, ac = surface_gradients(self.V[ids], self.T)
+        gc, ac = np.concatenate([gc, self.g[rows]]), np.concatenate([ac, self.area[rows]])
+        self.e0 = normalized_energy(self.x[ids], T, gc, ac)  # this level's start, before a coarser level of its own
         self.run, self.multilevel = multilevel_polish(
             self.V[ids], T, self.x[ids], loop_ranges(self.loops), gc, ac, self.settings.for_coarse_level(),
-            progress=self.progress, guards=local[ears], label=self.label)
-        self.report["guards"] = int(len(ears))
+            progress=self.progress, label=self.label)
+        self.report["ears"] = int(len(rows))
 
     @property
     def label(self) -> str:
@@ -392,10 +402,10 @@ class Multilevel:
         lower."""
 
     def __init__(self, V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.ndarray], g: np.ndarray,
-                 area: np.ndarray, settings: LevelSettings, *, progress=None, guards: np.ndarray | None = None,
+                 area: np.ndarray, settings: LevelSettings, *, progress=None,
                  restart: Callable[[], tuple[np.ndarray | None, dict]] | None = None):
         self.V, self.F, self.x, self.loops, self.g, self.area = V, F, x, loops, g, area
-        self.settings, self.progress, self.guards, self.restart = settings, progress, guards, restart
+        self.settings, self.progress, self.restart = settings, progress, restart
         self.coarse: CoarseLevel | None = None
         self.near_isometric = False  # the start is within MULTILEVEL_MIN_EXCESS of an isometry
         self.prepared = None
@@ -423,8 +433,8 @@ class Multilevel:
 
     def _level(self, settings: LevelSettings) -> np.ndarray | None:
         """A coarse level of ``x`` started (:meth:`CoarseLevel.start`): the fine start, or None; reported."""
-        self.coarse = CoarseLevel(self.V, self.F, self.x, self.loops, self.g, settings, progress=self.progress,
-                                  guards=self.guards)
+        self.coarse = CoarseLevel(self.V, self.F, self.x, self.loops, self.g, self.area, settings,
+                                  progress=self.progress)
         try:
             y, rep = self.coarse.start()
         except (ValueError, RuntimeError, np.linalg.LinAlgError) as exc:  # only a faster start: never fatal
@@ -492,11 +502,10 @@ class Multilevel:
         the provisional one of a paused coarse level, which the fine polish never starts from (:class:`Levels`)."""
         prepared, self.prepared, s = self.prepared, None, self.settings
         if y is not None and s.smooth and not s.coarse and not (self.coarse is not None and self.coarse.paused):
-            fixed = [*self.loops, *([] if self.guards is None else [self.guards.ravel()])]
             y, self.report["smoothing"] = Smoother(self.F, self.g, self.area, len(self.V),
-                                                   np.concatenate(fixed)).smooth(y)
+                                                   np.concatenate(self.loops)).smooth(y)
         return Polish(self.x if y is None else y, self.F, self.g, self.area, self.loops, self.fine_settings(y),
-                      guards=self.guards, prepared=prepared)
+                      prepared=prepared)
 
     def refined(self, provisional: Polish) -> Polish:
         """The fine polish after the paused coarse level finished and prolongated again (the report updated in
@@ -511,18 +520,18 @@ class Multilevel:
 
 
 def multilevel_polish(V: np.ndarray, F: np.ndarray, x: np.ndarray, loops: list[np.ndarray], g: np.ndarray,
-                      area: np.ndarray, settings: LevelSettings, *, progress=None, guards: np.ndarray | None = None,
-                      label: str = "Newton", restart: Callable[[], tuple[np.ndarray | None, dict]] | None = None
+                      area: np.ndarray, settings: LevelSettings, *, progress=None, label: str = "Newton",
+                      restart: Callable[[], tuple[np.ndarray | None, dict]] | None = None
                       ) -> tuple[Polish | Levels, dict]:
     """Polish (V (n,3), F (m,3)) from the bijective layout ``x`` (n,2), coarse-to-fine when the mesh has at least
     ``settings.min_vertices`` vertices and ``x`` is more than ``MULTILEVEL_MIN_EXCESS`` above an isometry
     (:class:`Multilevel`), until the polish stops or pauses (``settings.pause_excess``; ``pause_fine_start``: before
-    the fine level's first iteration, when a coarse level gave its start). g (m,3,2), area (m,): the
-    rest triangles' hat gradients and areas; loops: boundary loops, outer first; guards (k,3): triangles kept
-    positive; restart: another start for the levels when the coarse level stalls (:class:`Multilevel`). Returns
-    (the fine level's :class:`newton.Polish`, or :class:`Levels` when its coarse level paused, with its layout
-    ``x`` and ``report()``; the coarse-to-fine report, updated in place when a paused coarse level is finished)."""
-    ml = Multilevel(V, F, x, loops, g, area, settings, progress=progress, guards=guards, restart=restart)
+    the fine level's first iteration, when a coarse level gave its start). g (m,3,2), area (m,): the rest
+    triangles' hat gradients and areas; loops: boundary loops, outer first; restart: another start for the levels
+    when the coarse level stalls (:class:`Multilevel`). Returns (the fine level's :class:`newton.Polish`, or
+    :class:`Levels` when its coarse level paused, with its layout ``x`` and ``report()``; the coarse-to-fine report,
+    updated in place when a paused coarse level is finished)."""
+    ml = Multilevel(V, F, x, loops, g, area, settings, progress=progress, restart=restart)
     run: Polish | Levels = ml.fine_polish(ml.coarse_start())
     if ml.coarse is not None and ml.coarse.paused:
         run = Levels(run, ml)

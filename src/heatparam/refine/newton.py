@@ -30,7 +30,7 @@ factorization (:func:`newton_direction`); the line search is bounded by the flip
 Without a scaffold (:class:`ScaffoldUse` ``NEVER``: the atlas's charts, ``refine.charts``; ``UNTIL_CROSSING``: a
 fine level after a converged coarse one) the Hessian is the surface's alone, its pattern fixed, and each step is
 checked instead of barred: halved until no two boundary edges cross (:func:`_chart_steps`, one step per chart), or,
-until crossing, redone with the scaffold at the first crossing.
+until crossing, redone with the stiffest scaffold at the first crossing.
 """
 
 from __future__ import annotations
@@ -463,11 +463,10 @@ def _safe_direction(sy: _System, fac, backend: str):
 
 
 def _barrier_step(x: np.ndarray, J: np.ndarray, Es: float, dx: np.ndarray, F: np.ndarray, g: np.ndarray,
-                  w_surf: np.ndarray, sc: Scaffold | None, guards: np.ndarray, gg: np.ndarray, loops: list[np.ndarray],
-                  groups: ChartGroups | None = None, halvings: int = CROSSING_HALVINGS
-                  ) -> tuple[float, np.ndarray] | None:
+                  w_surf: np.ndarray, sc: Scaffold | None, loops: list[np.ndarray], groups: ChartGroups | None = None,
+                  halvings: int = CROSSING_HALVINGS) -> tuple[float, np.ndarray] | None:
     """(step length t, the step t d (n,2)) along the Newton direction ``dx`` (2n,): at most 0.9 × the largest step
-    for which no surface or guard triangle flips (:func:`max_step`) and no farther than the chained scaffolds allow
+    for which no surface triangle flips (:func:`max_step`) and no farther than the chained scaffolds allow
     (``scaffold.feasible_step``, starting from the iteration's scaffold ``sc``), then :func:`_line_search` on the
     surface energy ``Es`` (the scaffold shapes the direction; the step may leave its triangulation behind); None
     when no step lowers the energy. Without a scaffold (``sc`` None) every chart of ``groups`` takes its own step
@@ -475,17 +474,16 @@ def _barrier_step(x: np.ndarray, J: np.ndarray, Es: float, dx: np.ndarray, F: np
     n = len(x)
     d = np.column_stack([dx[:n], dx[n:]])
     D = jacobians(d, F, g)
-    tguard = 0.9 * max_step(jacobians(x, guards, gg), jacobians(d, guards, gg))
     if sc is None:
         tf = face_step_limits(J, D)
         tmax = np.full(groups.k, LINE_SEARCH_MAX)
         np.minimum.at(tmax, groups.face, 0.9 * tf)
-        tc = _chart_steps(x, d, J, D, w_surf, np.minimum(tmax, tguard), groups, halvings)
+        tc = _chart_steps(x, d, J, D, w_surf, tmax, groups, halvings)
         if tc is None:
             return None
         tv = np.append(tc, 0.0)[groups.vertex]
         return float(np.dot(np.minimum(tc, 1.0), groups.weight) / groups.weight.sum()), tv[:, None] * d
-    tbar = min(0.9 * max_step(J, D), tguard)
+    tbar = 0.9 * max_step(J, D)
     step = _line_search(J, D, w_surf, Es, feasible_step(x, d, loops, sc, min(tbar, LINE_SEARCH_MAX)))
     if step is not None and step[0] >= LINE_SEARCH_MAX:
         step = _farther(x, d, loops, sc, J, D, w_surf, step, tbar)
@@ -585,15 +583,14 @@ FULL_STEP = 0.5  # a step of at least half the Newton step counts as uncut ("Sto
 
 
 def polish(uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray], *, bar=None,
-           guards: np.ndarray | None = None, groups: np.ndarray | None = None, **settings) -> tuple[np.ndarray, dict]:
+           groups: np.ndarray | None = None, **settings) -> tuple[np.ndarray, dict]:
     """Minimize the symmetric Dirichlet energy Σ A_f Ψ(J_f) from a bijective layout ``uv`` (n,2), keeping it bijective
     (the scheme: module docstring). g (m,3,2): hat gradients of the rest triangles; area (m,): their areas; loops:
-    boundary loops, outer first; guards (k,3): extra triangles, positive in ``uv``, without energy but kept
-    positive like the others (``multilevel``); groups (m,): the chart of each face, for ``ScaffoldUse.NEVER``;
+    boundary loops, outer first; groups (m,): the chart of each face, for ``ScaffoldUse.NEVER``;
     ``settings``: :class:`PolishSettings` fields. Returns the layout (n,2) and a JSON-able report. :class:`Polish`
     runs the same iterations in steps.
     """
-    run = Polish(uv, F, g, area, loops, PolishSettings(**settings), bar=bar, guards=guards, groups=groups)
+    run = Polish(uv, F, g, area, loops, PolishSettings(**settings), bar=bar, groups=groups)
     run.run()
     return run.x, run.report()
 
@@ -605,13 +602,13 @@ class Polish:
     the layout) of one that never paused. ``x`` (n,2) is the current layout, ``done`` whether it has stopped,
     ``stop`` why (:class:`Stop`). ``settings``: :class:`PolishSettings`. ``groups`` (m,): the chart of each face
     (default one) for ``ScaffoldUse.NEVER``: the charts being separate components, each takes its own step, checked
-    instead of barred (:func:`_chart_steps`). ``guards`` (k,3): triangles without energy that the line search keeps
-    positive. ``prepared``: the Hessian's pattern and analysis made ahead of time (:func:`prepare_hessian`).
+    instead of barred (:func:`_chart_steps`). ``prepared``: the Hessian's pattern and analysis made ahead of time
+    (:func:`prepare_hessian`).
     ``report()["scaffold_from_iteration"]`` (``UNTIL_CROSSING``): where the scaffold was taken, None if never."""
 
     def __init__(self, uv: np.ndarray, F: np.ndarray, g: np.ndarray, area: np.ndarray, loops: list[np.ndarray],
-                 settings: PolishSettings | None = None, *, bar=None, guards: np.ndarray | None = None,
-                 groups: np.ndarray | None = None, prepared: Prepared | None = None):
+                 settings: PolishSettings | None = None, *, bar=None, groups: np.ndarray | None = None,
+                 prepared: Prepared | None = None):
         t0 = time.perf_counter()
         settings = PolishSettings() if settings is None else settings
         self.settings, self._prepared = settings, prepared
@@ -646,8 +643,6 @@ class Polish:
         if np.isfinite(self.Es) and self.Es - 4.0 <= DECREMENT_TOL * settings.tol * self.Es:
             self.hist.append(self.Es)
             self.max_iters, self.converged, self.stop = 0, True, Stop.START_IS_MINIMUM
-        self.guards = np.zeros((0, 3), dtype=np.int64) if guards is None else guards
-        self.gg = hat_gradients(self.x[self.guards])  # any positive rest triangle will do: only det J's sign counts
         self.seconds = time.perf_counter() - t0
 
     def run(self, pause_excess: float = 0.0) -> bool:
@@ -714,13 +709,14 @@ class Polish:
         # a negligible Newton decrement: the start is already the minimum (module docstring, "Stopping")
         if 0.5 * float(sy.rhs @ dx) <= DECREMENT_TOL * self.settings.tol * sy.E0:
             return self._stopped(Stop.CONVERGED, converged=True)
-        step = _barrier_step(self.x, self.J, self.Es, dx, self.F, self.g, self.w_surf, sy.sc, self.guards, self.gg,
-                             self.loops, self.groups, 0 if self.settings.scaffold is ScaffoldUse.UNTIL_CROSSING
+        step = _barrier_step(self.x, self.J, self.Es, dx, self.F, self.g, self.w_surf, sy.sc, self.loops,
+                             self.groups, 0 if self.settings.scaffold is ScaffoldUse.UNTIL_CROSSING
                              else CROSSING_HALVINGS)
         if step is None:
             if self.settings.scaffold is ScaffoldUse.UNTIL_CROSSING and not self.scaffold:
-                # boundaries in the way: this iteration again, and the rest, with the scaffold
-                self.scaffold, self.crossing_switch = True, self.it
+                # boundaries in the way: this iteration again, and the rest, with the scaffold at its stiffest, as
+                # after a coarse level that stalled: they press on each other (docs/refine.md 5.6)
+                self.scaffold, self.crossing_switch, self.w_scaf = True, self.it, self.w_max
                 self.it -= 1
                 self.hist.pop()
                 return _Next.GO_ON
