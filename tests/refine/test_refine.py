@@ -1111,6 +1111,23 @@ def test_no_bijective_start_falls_back_to_the_smoothed_conformal_layout_before_t
     assert rep["bijective"]
 
 
+def test_a_tie_in_start_energy_goes_to_the_first_candidate():
+    """A flat part's conformal layout and any turn of it are isometries: their energies differ in the last bits
+    only, and the first candidate (the conformal layout) wins, whatever those bits say (``start.ENERGY_TIE``)."""
+    s = datasets.flat_square(h=0.1)
+    g, area = energy.surface_gradients(s.V, s.F)
+    disk = tutte.build_disk(s.V, s.F)
+    lscm = start.lscm_start(s.V, s.F, None, (g, area))
+    turns = {}
+    for k in range(1, 17):
+        c, d = np.cos(0.1 * k), np.sin(0.1 * k)
+        turns[f"turn{k}"] = lscm.uv @ np.array([[c, d], [-d, c]])
+    x, rep = start.choose_start(s.V, s.F, None, disk, g, area, lscm, None, "auto", extra=turns)
+    e = rep["energy"]
+    assert min(e[k] for k in turns) < e["conformal"]  # some turn is lower by round-off ...
+    assert rep["layout"] == "conformal" and np.array_equal(x, lscm.uv)  # ... and the conformal layout wins
+
+
 def test_tutte_when_the_smoothed_layouts_fold_too():
     from conftest import spiked_cylinder
 

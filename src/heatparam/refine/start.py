@@ -151,6 +151,13 @@ def lscm_start(V: np.ndarray, F: np.ndarray, conformal: Callable[[], np.ndarray]
     return LscmStart(xl, flips, cross, e, None, repair)
 
 
+#: Start energies within this fraction of the lowest are a tie, which the first candidate (MDS, conformal,
+#: projection, extras) wins: a mean of 1e4-1e6 terms has round-off far below it, and a flat part's conformal layout
+#: and projection are both isometries (woody.obj: 0.9999999999999999 against 1.0, which the Jacobians' summation
+#: order flipped)
+ENERGY_TIE = 1e-12
+
+
 def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk, g: np.ndarray, area: np.ndarray,
                  lscm: LscmStart | None, conformal: Callable[[], np.ndarray] | None, backend: str,
                  extra: dict[str, np.ndarray] | None = None, fallback: SmoothedStart | None = None
@@ -197,9 +204,11 @@ def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk
         if flips == 0 and cross == 0:
             cands[name], energies[name] = xe, normalized_energy(xe, F, g, area)
     # of the bijective candidates, start from the one with the lower energy: on developable parts LSCM (already
-    # computed by the fill decision) is an isometry up to round-off, where MDS needs 5-7 Newton iterations
+    # computed by the fill decision) is an isometry up to round-off, where MDS needs 5-7 Newton iterations; of
+    # energies within round-off of the lowest, the first candidate's (ENERGY_TIE)
     if cands:
-        start = min(energies, key=energies.get)
+        low = min(energies.values())
+        start = next(k for k, e in energies.items() if e <= low * (1 + ENERGY_TIE))
         x = np.array(cands[start], dtype=np.float64)
         report["energy"] = energies
     else:
