@@ -158,6 +158,12 @@ def lscm_start(V: np.ndarray, F: np.ndarray, conformal: Callable[[], np.ndarray]
 ENERGY_TIE = 1e-12
 
 
+def _lowest(energies: dict[str, float]) -> str:
+    """The candidate of lowest energy; of energies within ``ENERGY_TIE`` of it, the first one's."""
+    low = min(energies.values())
+    return next(k for k, e in energies.items() if e <= low * (1 + ENERGY_TIE))
+
+
 def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk, g: np.ndarray, area: np.ndarray,
                  lscm: LscmStart | None, conformal: Callable[[], np.ndarray] | None, backend: str,
                  extra: dict[str, np.ndarray] | None = None, fallback: SmoothedStart | None = None
@@ -204,11 +210,9 @@ def choose_start(V: np.ndarray, F: np.ndarray, uv: np.ndarray | None, disk: Disk
         if flips == 0 and cross == 0:
             cands[name], energies[name] = xe, normalized_energy(xe, F, g, area)
     # of the bijective candidates, start from the one with the lower energy: on developable parts LSCM (already
-    # computed by the fill decision) is an isometry up to round-off, where MDS needs 5-7 Newton iterations; of
-    # energies within round-off of the lowest, the first candidate's (ENERGY_TIE)
+    # computed by the fill decision) is an isometry up to round-off, where MDS needs 5-7 Newton iterations
     if cands:
-        low = min(energies.values())
-        start = next(k for k, e in energies.items() if e <= low * (1 + ENERGY_TIE))
+        start = _lowest(energies)
         x = np.array(cands[start], dtype=np.float64)
         report["energy"] = energies
     else:
