@@ -787,21 +787,29 @@ def test_coarse_to_fine_drops_a_coarse_level_that_stalls_far_from_its_minimum(be
     assert not cp["converged"] and cp["energy_end"] - 1 > multilevel.COARSE_MIN_GAIN * (cp["energy_start"] - 1)
 
 
-@pytest.fixture(scope="module")
-def beetle_cut_from_tutte():
-    """beetle.off cut open along its seams: (V, F, loops, g, area, its Tutte layout, its conformal layout with the
-    slits reopened, the seams stage's start candidate)."""
+def _cut_open(V, F):
+    """(V, F) cut open along the seams stage's seams: the cut mesh (Vs, Fs), its ``Surface`` and its conformal
+    layout with the slits reopened (the seams stage's start candidate)."""
     from heatparam.mesh.seams import cut_open, hole_seams
     from heatparam.mesh.validate import validate_mesh
     from heatparam.pipeline.seams import _reopened_conformal
     from heatparam.pipeline.surface import Surface
 
-    surface = Surface.validated(*_load("beetle.off"))[0]
-    Vs, Fs, src = cut_open(surface.V, surface.F, hole_seams(surface.V, surface.F, surface.info.boundary_loops))
+    Vs, Fs, src = cut_open(V, F, hole_seams(V, F, validate_mesh(V, F).boundary_loops))
     cut = Surface(Vs, Fs, validate_mesh(Vs, Fs), conformal_method="inverse")
+    return Vs, Fs, cut, _reopened_conformal(cut, src)[0]
+
+
+@pytest.fixture(scope="module")
+def beetle_cut_from_tutte():
+    """beetle.off cut open along its seams: (V, F, loops, g, area, its Tutte layout, its conformal layout with the
+    slits reopened, the seams stage's start candidate)."""
+    from heatparam.pipeline.surface import Surface
+
+    surface = Surface.validated(*_load("beetle.off"))[0]
+    Vs, Fs, _, reopened = _cut_open(surface.V, surface.F)
     disk = tutte.build_disk(Vs, Fs)
     g, area = energy.surface_gradients(Vs, Fs)
-    reopened, _ = _reopened_conformal(cut, src)
     return Vs, Fs, disk.loops, g, area, tutte.tutte(Vs, disk)[: len(Vs)], reopened
 
 
@@ -875,6 +883,29 @@ def test_multilevel_polish_matches_single_level():
     # the fine level stops at the looser tolerance (the coarse one converged) and still lands on that minimum
     tol = refine.RefineParams().tol
     assert rep2["multilevel"]["fine_tol"] == pytest.approx(multilevel.MULTILEVEL_FINE_TOL_FACTOR * tol)
+
+
+def test_coarse_level_keeps_its_ears_in_its_energy(monkeypatch):
+    """A fine triangle with three boundary corners (an ear: here where the seams turn) is carried by no coarse
+    triangle: the coarse level polishes it with the mesh's own rest shape and area beside its own triangles, and so
+    keeps it positive without stalling (as energy-free guards, the barrier cut each step short of collapsing one)."""
+    s = datasets.curved_cap_with_holes(sphere_radius=1.2, h=0.02)
+    Vs, Fs, cut, _ = _cut_open(s.V, s.F)  # no slit crosses in its conformal layout: none to reopen
+    g, area = energy.surface_gradients(Vs, Fs)
+    x0 = cut.conformal()
+    assert start.bijectivity(x0, Fs, g) == (0, 0)
+    monkeypatch.setattr(multilevel, "COARSE_MIN", 1500)
+    level = multilevel.CoarseLevel(Vs, Fs, x0, cut.info.boundary_loops, g, area, multilevel.LevelSettings(0))
+    y, rep = level.start()
+    rows = multilevel.ears(Fs, level.locked)
+    assert rep["used"] and rep["ears"] == len(rows) > 0, rep
+    run = level.run
+    assert len(run.F) == len(level.T) + len(rows)
+    assert np.array_equal(run.g[len(level.T):], g[rows])  # the mesh's own rest shapes
+    assert rep["coarse_polish"]["converged"], rep["coarse_polish"]
+    d0, d1 = (energy.det(energy.jacobians(z, Fs[rows], g[rows])) for z in (x0, y))
+    assert (d1 > 0.1 * d0).all()  # not squeezed towards a collapse
+    assert start.bijectivity(y, Fs, g) == (0, 0)
 
 
 def _grid() -> tuple[np.ndarray, np.ndarray, np.ndarray]:

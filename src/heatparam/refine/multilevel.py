@@ -228,9 +228,11 @@ def untangle_flips(y: np.ndarray, V: np.ndarray, F: np.ndarray, g: np.ndarray, l
             return z, total
     return None, total
 
+
 def ears(F: np.ndarray, boundary: np.ndarray) -> np.ndarray:
     """The rows (k,) of F (m,3) whose three corners are all boundary vertices (``boundary`` (n,) bool)."""
     return np.flatnonzero(boundary[F].all(axis=1))
+
 
 class CoarseLevel:
     """The coarse level of a mesh (V (n,3), F (m,3)) laid out bijectively at ``x`` (n,2): :meth:`build` it,
